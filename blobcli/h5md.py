@@ -1,0 +1,174 @@
+"""Trajectory files: H5MD 1.1, blobsim format version 1 (a contract; see the README).
+
+    /                      attrs: complete (bool), blobsim_format (int), stopped (str)
+    /h5md                  attrs: version = [1, 1]
+        author             attrs: name
+        creator            attrs: name = "blobsim", version
+    /particles/blobs/
+        box                attrs: dimension = 2, boundary = ["none", "none"]
+        position/{value [frames, N, 2] float64 (m), step [frames] int64, time [frames] float64 (s)}
+    /observables/
+        area/{value [frames, B] (m², positive for the blob's own winding), step, time}
+        kinetic_energy/{value [frames, B] (J), step, time}
+    /parameters/
+        blob_offsets [B + 1] int64, blob_names [B] str, target_area [B] (m²), mass [B] (kg),
+        scene (str: the scene's TOML), attrs: dt, substeps, iterations, method, damping,
+        gravity, steps, every, source, and the versions a reproduction needs
+    /restart/              the last recorded frame, exactly: position [N, 2], velocity [N, 2], attr step
+
+Frames are buffered and written in blocks of about 1 MiB (and at least every
+FLUSH_SECONDS), into `<path>.partial`; `close` marks the file and renames it to `<path>`,
+so `<path>` is never a half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+FORMAT_VERSION = 1
+BLOCK_BYTES = 1 << 20  # frames per block: about this many bytes of positions
+FLUSH_SECONDS = 10.0  # and no block waits longer than this
+
+
+def _series(group, name, shape, dtype=np.float64, unit=None, chunk=1):
+    """An H5MD time-dependent element: value [frames, *shape], step, time."""
+    g = group.create_group(name)
+    v = g.create_dataset("value", shape=(0, *shape), maxshape=(None, *shape), dtype=dtype,
+                         chunks=(chunk, *shape))
+    if unit:
+        v.attrs["unit"] = unit
+    g.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(max(chunk, 256),))
+    t = g.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(max(chunk, 256),))
+    t.attrs["unit"] = "s"
+    return g
+
+
+def versions() -> dict:
+    import numba
+    from . import __version__
+    return {"blobsim_version": __version__, "python": sys.version.split()[0], "numpy": np.__version__,
+            "numba": numba.__version__, "h5py": h5py.__version__, "hdf5": h5py.version.hdf5_version,
+            "platform": platform.platform(), "machine": platform.machine()}
+
+
+class TrajectoryWriter:
+    """Streams frames of one run into an H5MD file."""
+
+    def __init__(self, path, scene, model, params):
+        from . import __version__
+        self.path = Path(path)
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.dt = params.dt
+        n, b = model.vertex_count, model.blob_count
+        self.block = max(1, min(4096, BLOCK_BYTES // (16 * n)))
+        f = self.file = h5py.File(self.partial, "w")
+        f.attrs["complete"] = False
+        f.attrs["blobsim_format"] = FORMAT_VERSION
+        h5 = f.create_group("h5md")
+        h5.attrs["version"] = np.array([1, 1], dtype=np.int32)
+        h5.create_group("author").attrs["name"] = os.environ.get("USER", "blobsim user")
+        creator = h5.create_group("creator")
+        creator.attrs["name"] = "blobsim"
+        creator.attrs["version"] = __version__
+
+        particles = f.create_group("particles/blobs")
+        box = particles.create_group("box")
+        box.attrs["dimension"] = 2
+        box.attrs["boundary"] = np.array([b"none", b"none"])
+        self.position = _series(particles, "position", (n, 2), unit="m", chunk=self.block)
+        obs = f.create_group("observables")
+        self.area = _series(obs, "area", (b,), unit="m^2", chunk=self.block)
+        self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
+
+        p = f.create_group("parameters")
+        p.create_dataset("blob_offsets", data=model.offsets)
+        p.create_dataset("blob_names", data=np.array(model.names, dtype=object), dtype=h5py.string_dtype())
+        p.create_dataset("target_area", data=np.abs(model.target_area))
+        p.create_dataset("mass", data=model.mass)
+        p.create_dataset("scene", data=scene.text, dtype=h5py.string_dtype())
+        attrs = dict(dt=params.dt, substeps=params.substeps, iterations=params.iterations, method=params.method,
+                     damping=params.damping, gravity=params.gravity, steps=params.steps, every=params.every,
+                     source=scene.source, **versions())
+        for k, v in attrs.items():
+            p.attrs[k] = v
+        self._sign = np.sign(model.rest_area)
+        self._buffer = []
+        self._last_flush = time.monotonic()
+        self.frames = 0
+
+    def append(self, step: int, pos, vel, area, kinetic):
+        """Buffer one frame (copied); write the block when it is full or old."""
+        self._buffer.append((step, pos.copy(), vel.copy(), area * self._sign, kinetic.copy()))
+        if len(self._buffer) >= self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
+            self.flush()
+
+    def flush(self):
+        if not self._buffer:
+            return
+        steps = np.array([s for s, *_ in self._buffer], dtype=np.int64)
+        columns = [(self.position, np.stack([x[1] for x in self._buffer])),
+                   (self.area, np.stack([x[3] for x in self._buffer])),
+                   (self.kinetic, np.stack([x[4] for x in self._buffer]))]
+        start, stop = self.frames, self.frames + len(steps)
+        for group, values in columns:
+            for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
+                ds = group[name]
+                ds.resize(stop, axis=0)
+                ds[start:stop] = data
+        step, pos, vel = self._buffer[-1][:3]
+        restart = self.file.require_group("restart")
+        for name, data in (("position", pos), ("velocity", vel)):
+            if name in restart:
+                restart[name][...] = data
+            else:
+                restart.create_dataset(name, data=data)
+        restart.attrs["step"] = step
+        self.frames = stop
+        self._buffer.clear()
+        self.file.flush()
+        self._last_flush = time.monotonic()
+
+    def close(self, complete: bool, stopped: str = ""):
+        """Write what is buffered, mark the file and move it into place at `path`."""
+        self.flush()
+        self.file.attrs["complete"] = complete
+        self.file.attrs["stopped"] = stopped
+        self.file.close()
+        os.replace(self.partial, self.path)
+
+
+@dataclass
+class Trajectory:
+    """A trajectory file read back whole (for tests, compare and replay)."""
+    position: np.ndarray  # (frames, N, 2)
+    step: np.ndarray  # (frames,)
+    time: np.ndarray  # (frames,)
+    offsets: np.ndarray  # (B + 1,)
+    names: list
+    area: np.ndarray  # (frames, B)
+    kinetic_energy: np.ndarray  # (frames, B)
+    target_area: np.ndarray  # (B,)
+    complete: bool
+    attrs: dict  # /parameters attrs
+    scene: str
+
+
+def read_trajectory(path) -> Trajectory:
+    with h5py.File(path, "r") as f:
+        pos = f["particles/blobs/position"]
+        p = f["parameters"]
+        return Trajectory(position=pos["value"][...], step=pos["step"][...], time=pos["time"][...],
+                          offsets=p["blob_offsets"][...], names=[s.decode() for s in p["blob_names"][...]],
+                          area=f["observables/area/value"][...],
+                          kinetic_energy=f["observables/kinetic_energy/value"][...],
+                          target_area=p["target_area"][...], complete=bool(f.attrs["complete"]),
+                          attrs=dict(p.attrs), scene=p["scene"][()].decode())

@@ -1,0 +1,195 @@
+"""Static model data and changing state, built once from a validated scene.
+
+All vertices of all blobs live in one (N, 2) float64 array; blob b owns vertices
+offsets[b]:offsets[b+1], in ring order, and edge i joins vertex i to the next vertex of
+its ring. Only `State` changes during a step; `Model` and `Params` are read-only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
+
+REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
+
+
+@dataclass(frozen=True)
+class Params:
+    """Resolved time stepping and world settings."""
+    dt: float  # s
+    substeps: int
+    iterations: int
+    gravity: np.ndarray  # (2,) m/s²
+    damping: float  # 1/s
+    method: str
+    steps: int
+    every: int
+
+
+@dataclass(frozen=True)
+class StaticSet:
+    """All static colliders of one kind, flattened.
+
+    Shape s owns rows geom[shape_offsets[s]:shape_offsets[s+1]]. A row is
+    plane (px, py, nx, ny), circle (cx, cy, r, 0), segment or polygon edge (ax, ay, bx, by);
+    polygons (and boxes) are counter-clockwise, so an edge's outward normal is its right side.
+    """
+    kind: str  # "plane", "circle", "segment" or "polygon"
+    geom: np.ndarray  # (rows, 4) float64
+    shape_offsets: np.ndarray  # (shapes + 1,) int64
+    material: np.ndarray  # (shapes, 3): static friction μ_s, kinetic μ_k, restitution e
+    aabb: np.ndarray  # (shapes, 4): xmin, ymin, xmax, ymax
+
+
+@dataclass(frozen=True)
+class Model:
+    """Arrays computed once per scene; never written during a step."""
+    names: tuple[str, ...]  # (B,)
+    offsets: np.ndarray  # (B + 1,) int64
+    blob_of: np.ndarray  # (N,) int64, the blob owning each vertex
+    inv_mass: np.ndarray  # (N,) 1/kg
+    rest_length: np.ndarray  # (N,) m, edge i -> next vertex of its ring
+    rest_area: np.ndarray  # (B,) m², signed: > 0 for counter-clockwise rings
+    target_area: np.ndarray  # (B,) m², signed, = pressure × rest_area
+    compliance: np.ndarray  # (B,) m/N, XPBD α of the perimeter edges
+    material: np.ndarray  # (B, 3): static friction μ_s, kinetic μ_k, restitution e
+    mass: np.ndarray  # (B,) kg
+    statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
+
+    @property
+    def blob_count(self) -> int:
+        return len(self.offsets) - 1
+
+    @property
+    def vertex_count(self) -> int:
+        return int(self.offsets[-1])
+
+
+@dataclass
+class State:
+    """What changes during a step. pos and vel are the state proper; the rest is scratch
+    rewritten every substep (kept here so a step allocates nothing)."""
+    pos: np.ndarray  # (N, 2) m
+    vel: np.ndarray  # (N, 2) m/s
+    prev: np.ndarray  # (N, 2) m, positions at the start of the substep
+    lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
+    contact_normal: np.ndarray  # (N, 2) unit normal of the vertex's static contact
+    contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
+    contact_material: np.ndarray  # (N, 3) combined μ_s, μ_k, e of that contact
+
+
+def blob_points(b: BlobDef) -> np.ndarray:
+    """The blob's polygon as an (n, 2) array, in the winding the user gave."""
+    if b.points is not None:
+        return np.array(b.points, dtype=np.float64)
+    theta = 2.0 * np.pi * np.arange(b.vertices) / b.vertices
+    return np.stack([b.center[0] + b.radius * np.cos(theta), b.center[1] + b.radius * np.sin(theta)], axis=1)
+
+
+def build_params(scene: Scene) -> Params:
+    s = scene.settings
+    return Params(dt=s.dt, substeps=s.substeps, iterations=s.iterations,
+                  gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,
+                  method=s.method, steps=scene.steps, every=scene.output.every)
+
+
+def build(scene: Scene) -> tuple[Model, State]:
+    """Model and initial state of a validated scene (grids expanded)."""
+    names, rings, velocities, per_blob = [], [], [], []
+    for i, b in enumerate(scene.blobs):
+        base = blob_points(b)
+        nx, ny = b.grid
+        name = b.name or f"blob{i}"
+        if (nx, ny) == (1, 1):
+            shifts, copies = np.zeros((1, 2)), [name]
+        else:
+            ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+            shifts = np.stack([ix.ravel() * b.spacing[0], iy.ravel() * b.spacing[1]], axis=1)
+            copies = [f"{name}_{x}_{y}" for x, y in zip(ix.ravel(), iy.ravel())]
+        names += copies
+        rings.append((base[None, :, :] + shifts[:, None, :]).reshape(-1, 2))
+        counts = np.full(len(copies), len(base))
+        velocities.append(np.broadcast_to(np.array(b.velocity), (len(copies) * len(base), 2)))
+        area = signed_area(base)
+        per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
+                         (b.static_friction, b.friction, b.restitution)))
+
+    counts = np.concatenate([p[0] for p in per_blob])
+    offsets = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    pos = np.ascontiguousarray(np.concatenate(rings), dtype=np.float64)
+    vel = np.ascontiguousarray(np.concatenate(velocities), dtype=np.float64)
+
+    def per(k):  # one value per blob, expanded over each blob's grid copies
+        return np.concatenate([np.full(len(p[0]), p[k], dtype=np.float64) for p in per_blob])
+
+    mass, rest_area, pressure, compliance = per(1), per(2), per(3), per(4)
+    material = np.concatenate([np.tile(np.array(p[5], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
+    blob_of = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+    inv_mass = (counts / mass)[blob_of]
+    nxt = np.arange(len(pos)) + 1
+    nxt[offsets[1:] - 1] = offsets[:-1]
+    rest_length = np.hypot(*(pos[nxt] - pos).T)
+
+    model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
+                  rest_length=rest_length, rest_area=rest_area, target_area=pressure * rest_area,
+                  compliance=compliance, material=material, mass=mass,
+                  statics=build_statics(scene.statics))
+    n = len(pos)
+    state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
+                  contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
+                  contact_material=np.zeros((n, 3)))
+    return model, state
+
+
+def static_outline(s: StaticDef) -> np.ndarray:
+    """Counter-clockwise corner points of a box or polygon."""
+    if s.kind == "box":
+        w, h = s.size[0] / 2, s.size[1] / 2
+        corners = np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
+        c, t = math.cos(math.radians(s.angle)), math.sin(math.radians(s.angle))
+        return corners @ np.array([[c, t], [-t, c]]) + np.array(s.center)
+    pts = np.array(s.points, dtype=np.float64)
+    return pts if signed_area(pts) > 0 else pts[::-1].copy()
+
+
+def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
+    """Group colliders by kind (boxes become polygons), in the fixed order of COLLIDER_KINDS."""
+    rows: dict[str, list] = {k: [] for k in COLLIDER_KINDS}
+    for s in statics:
+        kind = "polygon" if s.kind == "box" else s.kind
+        if s.kind == "plane":
+            n = np.array(s.normal) / math.hypot(*s.normal)
+            geom = np.array([[*s.point, *n]])
+            box = [-np.inf, -np.inf, np.inf, np.inf]
+        elif s.kind == "circle":
+            geom = np.array([[*s.center, s.radius, 0.0]])
+            box = [s.center[0] - s.radius, s.center[1] - s.radius, s.center[0] + s.radius, s.center[1] + s.radius]
+        elif s.kind == "segment":
+            geom = np.array([[*s.a, *s.b]])
+            box = [min(s.a[0], s.b[0]), min(s.a[1], s.b[1]), max(s.a[0], s.b[0]), max(s.a[1], s.b[1])]
+        else:
+            pts = static_outline(s)
+            geom = np.concatenate([pts, np.roll(pts, -1, axis=0)], axis=1)
+            box = [*pts.min(axis=0), *pts.max(axis=0)]
+        rows[kind].append((geom, (s.static_friction, s.friction, s.restitution), box))
+    out = []
+    for kind in COLLIDER_KINDS:
+        if not rows[kind]:
+            continue
+        sizes = [len(g) for g, _, _ in rows[kind]]
+        offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        out.append(StaticSet(kind=kind, geom=np.ascontiguousarray(np.concatenate([g for g, _, _ in rows[kind]])),
+                             shape_offsets=offsets,
+                             material=np.array([m for _, m, _ in rows[kind]], dtype=np.float64),
+                             aabb=np.array([b for _, _, b in rows[kind]], dtype=np.float64)))
+    return tuple(out)
+
+
+COLLIDER_KINDS = ("plane", "segment", "circle", "polygon")
+assert set(COLLIDER_KINDS) | {"box"} == set(STATIC_KINDS)

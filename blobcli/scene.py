@@ -1,0 +1,558 @@
+"""The scene: what a user writes in TOML, validated into frozen dataclasses.
+
+Every scene key is one dataclass field below, with its default, unit and check (`key`).
+The validator, `blobsim check` and the README's scene reference all read these fields,
+so a default has exactly one home. Errors collect into one `SceneError`, one line each:
+`file:line: blob[1].radius: must be > 0 (got -0.5)` (indices are 0-based).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+from .tomlpos import key_lines, line_of
+
+MAX_SCENE_BYTES = 4 * 1024 * 1024  # a scene file larger than this is refused unread
+MAX_VERTICES = 2_000_000  # total vertices after grids: ~0.4 GB of state arrays
+MAX_BLOBS = 200_000
+MAX_BLOB_VERTICES = 100_000  # one blob's ring (its area sums run in one thread)
+
+METHODS = ("kot",)  # area methods; blobcli.area.AREA_METHODS must have the same names
+STATIC_KINDS = {  # kind -> its geometry keys (all required, except box.angle)
+    "plane": ("point", "normal"),
+    "segment": ("a", "b"),
+    "box": ("center", "size", "angle"),
+    "circle": ("center", "radius"),
+    "polygon": ("points",),
+}
+
+
+class SceneError(Exception):
+    """One or more problems with a scene, each already formatted as `file:line: ...`."""
+
+    def __init__(self, problems: list[str]):
+        super().__init__("\n".join(problems))
+        self.problems = problems
+
+
+# --- checks: each returns a complaint, or None when the value is fine -------------------
+
+def positive(v):
+    return None if v > 0 else "must be > 0"
+
+
+def nonnegative(v):
+    return None if v >= 0 else "must be >= 0"
+
+
+def at_least(n):
+    return lambda v: None if v >= n else f"must be >= {n}"
+
+
+def unit_interval(v):
+    return None if 0 <= v <= 1 else "must be in [0, 1]"
+
+
+def nonzero_vec(v):
+    return None if math.hypot(*v) > 0 else "must not be the zero vector"
+
+
+def positive_vec(v):
+    return None if min(v) > 0 else "both components must be > 0"
+
+
+def nonnegative_vec(v):
+    return None if min(v) >= 0 else "both components must be >= 0"
+
+
+def key(default, unit: str, doc: str, kind: str, check=None):
+    """A scene key: its default, unit, one-line doc, value kind and check."""
+    return field(default=default, metadata=dict(unit=unit, doc=doc, kind=kind, check=check))
+
+
+@dataclass(frozen=True)
+class SceneSettings:
+    """`[scene]`: time stepping and the world."""
+    name: str | None = key(None, "", "scene name; default: the file's stem", "str")
+    duration: float | None = key(None, "s", "simulated time; default 5 s unless `steps` is given", "float", positive)
+    steps: int | None = key(None, "", "number of steps (instead of `duration`)", "int", at_least(1))
+    dt: float = key(1 / 60, "s", "fixed time step", "float", positive)
+    substeps: int = key(4, "", "substeps per step (h = dt / substeps)", "int", at_least(1))
+    iterations: int = key(2, "", "solver iterations per substep", "int", at_least(1))
+    gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
+    method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
+    damping: float = key(1.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass (deformation and spin)", "float", nonnegative)
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """`[output]`: where the trajectory goes."""
+    path: str | None = key(None, "", "HDF5 file; default outputs/<name>.h5", "str")
+    every: int = key(1, "steps", "record every k-th step (frame 0 is the initial state)", "int", at_least(1))
+
+
+@dataclass(frozen=True)
+class BlobDef:
+    """`[[blob]]`: one blob, or a grid of copies of it."""
+    name: str | None = key(None, "", "name; default blob<i>; grid copies get _<ix>_<iy>", "str")
+    center: tuple | None = key(None, "m", "centre of a circular ring (with `radius`)", "vec2")
+    radius: float | None = key(None, "m", "radius of a circular ring", "float", positive)
+    vertices: int = key(32, "", "vertex count of a circular ring", "int", at_least(3))
+    points: tuple | None = key(None, "m", "explicit simple polygon, either winding (instead of a ring)", "points")
+    mass: float = key(1.0, "kg", "total mass, spread evenly over the vertices", "float", positive)
+    velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
+    pressure: float = key(1.0, "", "target area = pressure × rest area", "float", positive)
+    compliance: float = key(2e-4, "m/N", "perimeter compliance α (XPBD); 0 = inextensible", "float", nonnegative)
+    friction: float = key(0.5, "", "kinetic (sliding) friction coefficient μ_k", "float", nonnegative)
+    static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction)", "float", nonnegative)
+    restitution: float = key(0.0, "", "bounciness e in [0, 1]", "float", unit_interval)
+    grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", at_least(1))
+    spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
+
+
+@dataclass(frozen=True)
+class StaticDef:
+    """`[[static]]`: an immovable collider."""
+    kind: str = key(None, "", "plane, segment, box, circle or polygon", "str")
+    point: tuple | None = key(None, "m", "plane: a point on it", "vec2")
+    normal: tuple | None = key(None, "", "plane: normal pointing out of the solid side", "vec2", nonzero_vec)
+    a: tuple | None = key(None, "m", "segment: first end (zero thickness, solid from both sides)", "vec2")
+    b: tuple | None = key(None, "m", "segment: second end", "vec2")
+    center: tuple | None = key(None, "m", "box, circle: centre", "vec2")
+    size: tuple | None = key(None, "m", "box: [width, height]", "vec2", positive_vec)
+    angle: float = key(0.0, "deg", "box: rotation, counter-clockwise", "float")
+    radius: float | None = key(None, "m", "circle: radius", "float", positive)
+    points: tuple | None = key(None, "m", "polygon: simple polygon, concave allowed, either winding, solid inside", "points")
+    friction: float = key(0.5, "", "kinetic friction μ_k (combined with a blob's as √(μ₁μ₂))", "float", nonnegative)
+    static_friction: float = key(0.6, "", "static friction μ_s (combined as √(μ₁μ₂))", "float", nonnegative)
+    restitution: float = key(0.0, "", "bounciness (combined with a blob's as the max)", "float", unit_interval)
+
+
+TABLES = {"scene": SceneSettings, "output": OutputSettings, "blob": BlobDef, "static": StaticDef}
+DEFAULT_DURATION = 5.0  # s, when neither `duration` nor `steps` is given
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene, as written plus what it resolves to."""
+    settings: SceneSettings
+    output: OutputSettings
+    blobs: tuple[BlobDef, ...]
+    statics: tuple[StaticDef, ...]
+    source: str = ""  # the file it came from
+    text: str = ""  # its TOML text, stored in every output file
+
+    @property
+    def name(self) -> str:
+        return self.settings.name or Path(self.source).stem or "scene"
+
+    @property
+    def steps(self) -> int:
+        s = self.settings
+        if s.steps is not None:
+            return s.steps
+        return max(1, round((s.duration or DEFAULT_DURATION) / s.dt))
+
+    @property
+    def output_path(self) -> Path:
+        return Path(self.output.path) if self.output.path else Path("outputs") / f"{self.name}.h5"
+
+    @property
+    def blob_count(self) -> int:
+        return sum(b.grid[0] * b.grid[1] for b in self.blobs)
+
+    @property
+    def vertex_count(self) -> int:
+        return sum(b.grid[0] * b.grid[1] * blob_vertex_count(b) for b in self.blobs)
+
+
+def blob_vertex_count(b: BlobDef) -> int:
+    return len(b.points) if b.points is not None else b.vertices
+
+
+def with_overrides(scene: Scene, *, steps=None, duration=None, method=None) -> Scene:
+    """The scene with command-line overrides applied (already validated by the CLI)."""
+    s = scene.settings
+    if steps is not None:
+        s = replace(s, steps=steps, duration=None)
+    if duration is not None:
+        s = replace(s, duration=duration, steps=None)
+    if method is not None:
+        s = replace(s, method=method)
+    return replace(scene, settings=s)
+
+
+# --- polygon checks used by validation ---------------------------------------------------
+
+def signed_area(points) -> float:
+    """Shoelace area: positive for counter-clockwise winding."""
+    n = len(points)
+    return 0.5 * sum(points[i][0] * points[(i + 1) % n][1] - points[(i + 1) % n][0] * points[i][1]
+                     for i in range(n))
+
+
+def first_crossing(points) -> tuple[int, int] | None:
+    """First pair of non-adjacent edges (i, j) of a closed polygon that touch, or None."""
+    import numpy as np
+    p = np.asarray(points, dtype=float)
+    n = len(p)
+    a, b = p, np.roll(p, -1, axis=0)
+
+    def orient(p, q, r):
+        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+    for i in range(n):
+        j = np.arange(i + 1, n)
+        j = j[(j != (i + 1) % n) & ((j + 1) % n != i)]  # skip edges sharing a vertex with i
+        if len(j) == 0:
+            continue
+        o1 = orient(a[i], b[i], a[j])
+        o2 = orient(a[i], b[i], b[j])
+        o3 = orient(a[j], b[j], a[i])
+        o4 = orient(a[j], b[j], b[i])
+        hit = (o1 != o2) & (o3 != o4)
+        hit |= (o1 == 0) & (o2 == 0) & _overlap(a[i], b[i], a[j], b[j])  # collinear overlap
+        if hit.any():
+            return i, int(j[np.argmax(hit)])
+    return None
+
+
+def _overlap(a, b, c, d):
+    import numpy as np
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    lo2 = np.minimum(c, d)
+    hi2 = np.maximum(c, d)
+    return np.all((lo2 <= hi) & (hi2 >= lo), axis=-1)
+
+
+# --- loading -----------------------------------------------------------------------------
+
+def fmt_path(path: tuple) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (("." if out else "") + str(p))
+    return out
+
+
+def fmt_value(v) -> str:
+    if isinstance(v, str):
+        return repr(v)
+    if isinstance(v, dict):
+        return "a table"
+    text = repr(v) if not isinstance(v, (list, tuple)) else "[" + ", ".join(fmt_value(x) for x in v) + "]"
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+class _Problems:
+    """Collects `file:line: path: message` lines."""
+
+    def __init__(self, source: str, lines: dict):
+        self.source, self.lines, self.items = source, lines, []
+
+    def add(self, path: tuple, message: str, got=None, show_got=True):
+        text = f"{self.source}:{line_of(self.lines, path)}: {fmt_path(path)}: {message}"
+        if show_got:
+            text += f" (got {fmt_value(got)})"
+        self.items.append(text)
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _coerce(kind: str, v, path, problems: _Problems):
+    """Check a raw TOML value against a key kind; return the typed value or None."""
+    def bad(message):
+        problems.add(path, message, v)
+
+    if kind == "str":
+        if not isinstance(v, str):
+            return bad("must be a string")
+        return v
+    if kind == "int":
+        if isinstance(v, bool) or not isinstance(v, int):
+            return bad("must be an integer")
+        return v
+    if kind == "float":
+        if not _number(v):
+            return bad("must be a number")
+        if not math.isfinite(v):
+            return bad("must be finite")
+        return float(v)
+    if kind in ("vec2", "int2"):
+        if not isinstance(v, list) or len(v) != 2:
+            return bad("must be a list of 2 numbers" if kind == "vec2" else "must be a list of 2 integers")
+        if kind == "int2":
+            if not all(isinstance(x, int) and not isinstance(x, bool) for x in v):
+                return bad("must be a list of 2 integers")
+            return tuple(v)
+        if not all(_number(x) for x in v):
+            return bad("must be a list of 2 numbers")
+        if not all(math.isfinite(x) for x in v):
+            return bad("must be finite")
+        return (float(v[0]), float(v[1]))
+    if kind == "points":
+        if not isinstance(v, list) or len(v) < 3:
+            return bad("must be a list of at least 3 [x, y] points")
+        out = []
+        for i, p in enumerate(v):
+            q = _coerce("vec2", p, path + (i,), problems)
+            if q is None:
+                return None
+            out.append(q)
+        return tuple(out)
+    raise AssertionError(kind)
+
+
+def _table(cls, raw, path: tuple, problems: _Problems, allowed=None):
+    """Validate one TOML table into `cls`; unknown keys get a did-you-mean."""
+    if not isinstance(raw, dict):
+        problems.add(path, "must be a table", raw)
+        return None
+    names = [f.name for f in fields(cls)]
+    allowed = names if allowed is None else allowed
+    values, ok = {}, True
+    for k, v in raw.items():
+        if k not in allowed:
+            hint = difflib.get_close_matches(k, allowed, n=1)
+            where = f"not a key of {fmt_path(path) if path else 'a scene'}"
+            if k in names:
+                where = f"not a key of kind {raw.get('kind')!r}"
+            problems.add(path + (k,), f"unknown key: {where}" + (f"; did you mean {hint[0]!r}?" if hint else ""),
+                         show_got=False)
+            ok = False
+    for f in fields(cls):
+        if f.name not in raw:
+            continue
+        value = _coerce(f.metadata["kind"], raw[f.name], path + (f.name,), problems)
+        if value is None:
+            ok = False
+            continue
+        check = f.metadata["check"]
+        complaint = None
+        if check is not None:
+            items = value if f.metadata["kind"] == "int2" else [value]
+            complaint = next((c for c in map(check, items) if c), None)
+        if complaint:
+            problems.add(path + (f.name,), complaint, raw[f.name])
+            ok = False
+        values[f.name] = value
+    return cls(**values) if ok else None
+
+
+def _check_polygon(points, path, problems: _Problems):
+    if abs(signed_area(points)) <= 1e-12 * max(1.0, max(abs(c) for p in points for c in p)) ** 2:
+        problems.add(path, "polygon has zero area", points)
+        return
+    crossing = first_crossing(points)
+    if crossing:
+        i, j = crossing
+        problems.add(path, f"polygon intersects itself (edges {i} and {j} cross)", points)
+
+
+def _check_blob(b: BlobDef, path, problems: _Problems):
+    ring = (b.center, b.radius)
+    if b.points is not None and any(x is not None for x in ring):
+        problems.add(path, "give either center + radius (+ vertices) or points, not both", show_got=False)
+    elif b.points is None and None in ring:
+        missing = " and ".join(n for n, x in zip(("center", "radius"), ring) if x is None)
+        problems.add(path, f"needs center + radius (missing {missing}), or points", show_got=False)
+    if b.points is not None:
+        _check_polygon(b.points, path + ("points",), problems)
+    if b.static_friction < b.friction:
+        problems.add(path + ("static_friction",), f"must be >= friction ({b.friction})", b.static_friction)
+    if b.grid != (1, 1) and b.spacing is None:
+        problems.add(path + ("spacing",), "required with grid", show_got=False)
+    elif b.spacing is not None and any(n > 1 and d == 0 for n, d in zip(b.grid, b.spacing)):
+        problems.add(path + ("spacing",), "must be > 0 along an axis with more than one copy", b.spacing)
+
+
+def _check_static(s: StaticDef, path, problems: _Problems):
+    if s.static_friction < s.friction:
+        problems.add(path + ("static_friction",), f"must be >= friction ({s.friction})", s.static_friction)
+    if s.kind == "segment" and s.a == s.b:
+        problems.add(path + ("b",), "segment has zero length (a == b)", s.b)
+    if s.kind == "polygon":
+        _check_polygon(s.points, path + ("points",), problems)
+
+
+def parse_scene(text: str, source: str = "<scene>") -> Scene:
+    """Parse and validate scene TOML text; raise SceneError listing every problem."""
+    import tomli
+
+    try:
+        raw = tomli.loads(text)
+    except tomli.TOMLDecodeError as e:
+        line, col = getattr(e, "lineno", None), getattr(e, "colno", None)
+        msg = getattr(e, "msg", str(e))
+        where = f"{source}:{line}:{col}" if line else source
+        raise SceneError([f"{where}: TOML syntax error: {msg}"]) from None
+    except RecursionError:
+        raise SceneError([f"{source}:1: TOML nested too deeply to read"]) from None
+
+    problems = _Problems(source, key_lines(text))
+    for k in raw:
+        if k not in TABLES:
+            hint = difflib.get_close_matches(k, list(TABLES), n=1)
+            problems.add((k,), "unknown table" + (f"; did you mean {hint[0]!r}?" if hint else ""), show_got=False)
+
+    settings = _table(SceneSettings, raw.get("scene", {}), ("scene",), problems) or SceneSettings()
+    if settings.duration is not None and settings.steps is not None:
+        problems.add(("scene", "steps"), "give duration or steps, not both", show_got=False)
+    if settings.method not in METHODS:
+        hint = difflib.get_close_matches(settings.method, METHODS, n=1)
+        problems.add(("scene", "method"), f"unknown method; one of {', '.join(METHODS)}"
+                     + (f"; did you mean {hint[0]!r}?" if hint else ""), settings.method)
+    output = _table(OutputSettings, raw.get("output", {}), ("output",), problems) or OutputSettings()
+
+    blobs = _array(raw, "blob", problems)
+    statics = _array(raw, "static", problems)
+    if not blobs and "blob" not in raw:
+        problems.add(("blob",), "a scene needs at least one [[blob]]", show_got=False)
+
+    blob_defs = []
+    for i, rb in enumerate(blobs):
+        b = _table(BlobDef, rb, ("blob", i), problems)
+        if b is not None:
+            _check_blob(b, ("blob", i), problems)
+            blob_defs.append(b)
+
+    static_defs = []
+    for i, rs in enumerate(statics):
+        path = ("static", i)
+        kind = rs.get("kind") if isinstance(rs, dict) else None
+        if not isinstance(rs, dict):
+            problems.add(path, "must be a table", rs)
+            continue
+        if kind not in STATIC_KINDS:
+            hint = difflib.get_close_matches(str(kind), list(STATIC_KINDS), n=1) if isinstance(kind, str) else []
+            problems.add(path + ("kind",), f"must be one of {', '.join(STATIC_KINDS)}"
+                         + (f"; did you mean {hint[0]!r}?" if hint else ""), kind)
+            continue
+        geometry = STATIC_KINDS[kind]
+        allowed = ["kind", *geometry, "friction", "static_friction", "restitution"]
+        s = _table(StaticDef, rs, path, problems, allowed=allowed)
+        if s is None:
+            continue
+        missing = [g for g in geometry if g != "angle" and getattr(s, g) is None]
+        if missing:
+            problems.add(path, f"{kind} needs {', '.join(missing)}", show_got=False)
+            continue
+        _check_static(s, path, problems)
+        static_defs.append(s)
+
+    scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), source, text)
+    if not problems.items:
+        _check_size(scene, problems)
+    if problems.items:
+        raise SceneError(problems.items)
+    return scene
+
+
+def _array(raw: dict, name: str, problems: _Problems) -> list:
+    value = raw.get(name, [])
+    if not isinstance(value, list):
+        problems.add((name,), f"must be an array of tables: write [[{name}]]", value)
+        return []
+    return value
+
+
+def _check_size(scene: Scene, problems: _Problems):
+    """Refuse scenes whose arrays would be too large, before anything is allocated."""
+    for i, b in enumerate(scene.blobs):
+        if blob_vertex_count(b) > MAX_BLOB_VERTICES:
+            problems.add(("blob", i, "vertices"), f"at most {MAX_BLOB_VERTICES:,} vertices per blob",
+                         blob_vertex_count(b))
+    if scene.blob_count > MAX_BLOBS:
+        problems.add(("blob",), f"scene has {scene.blob_count:,} blobs after grids; the limit is {MAX_BLOBS:,}",
+                     show_got=False)
+    if scene.vertex_count > MAX_VERTICES:
+        problems.add(("blob",), f"scene has {scene.vertex_count:,} vertices after grids; "
+                     f"the limit is {MAX_VERTICES:,}", show_got=False)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file; raise SceneError (file problems included)."""
+    source = str(path)
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        if size > MAX_SCENE_BYTES:
+            raise SceneError([f"{source}: file is {size:,} bytes; a scene may be at most {MAX_SCENE_BYTES:,}"])
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise SceneError([f"{source}: no such file"]) from None
+    except IsADirectoryError:
+        raise SceneError([f"{source}: is a directory, not a scene file"]) from None
+    except OSError as e:
+        raise SceneError([f"{source}: cannot read ({e.strerror})"]) from None
+    if b"\x00" in data:
+        raise SceneError([f"{source}:1: not a text file (it contains NUL bytes)"])
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[:e.start].count(b"\n") + 1
+        raise SceneError([f"{source}:{line}: not UTF-8 text (byte 0x{data[e.start]:02x})"]) from None
+    return parse_scene(text, source)
+
+
+# --- presentation: `blobsim check` and the README reference --------------------------------
+
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return str(v)
+
+
+def resolved_toml(scene: Scene) -> str:
+    """The scene with every default filled in, as TOML (what `blobsim check` prints)."""
+    s = replace(scene.settings, name=scene.name)
+    if s.steps is None:
+        s = replace(s, duration=s.duration or DEFAULT_DURATION)
+    o = replace(scene.output, path=str(scene.output_path))
+    out = [f"# {scene.source}: {scene.blob_count} blobs, {scene.vertex_count} vertices, {scene.steps} steps"]
+
+    def table(header, obj, keys=None):
+        out.append(header)
+        for f in fields(obj):
+            if keys is not None and f.name not in keys:
+                continue
+            v = getattr(obj, f.name)
+            if v is not None:
+                unit = f.metadata["unit"]
+                out.append(f"{f.name} = {_toml_value(v)}" + (f"  # {unit}" if unit else ""))
+        out.append("")
+
+    table("[scene]", s)
+    table("[output]", o)
+    for b in scene.blobs:
+        keys = None if b.points is None else [f.name for f in fields(b) if f.name not in ("vertices",)]
+        table("[[blob]]", b, keys)
+    for st in scene.statics:
+        table("[[static]]", st, ["kind", *STATIC_KINDS[st.kind], "friction", "static_friction", "restitution"])
+    return "\n".join(out).rstrip() + "\n"
+
+
+def reference_markdown() -> str:
+    """The README's scene reference, generated from the dataclass fields."""
+    out = []
+    for name, cls in TABLES.items():
+        header = f"[[{name}]]" if name in ("blob", "static") else f"[{name}]"
+        out.append(f"#### `{header}`\n\n| key | default | unit | meaning |\n|---|---|---|---|")
+        for f in fields(cls):
+            d = f.default
+            default = "—" if d is None else f"`{_toml_value(round(d, 6) if isinstance(d, float) else d)}`"
+            out.append(f"| `{f.name}` | {default} | {f.metadata['unit'] or ''} | {f.metadata['doc']} |")
+        out.append("")
+    return "\n".join(out)

@@ -1,0 +1,197 @@
+"""Static collider stages: push vertices out of immovable shapes. One signature, by kind.
+
+Each stage projects a penetrating vertex to the nearest surface, and records the contact
+(normal, push-out depth, combined material) for the velocity update, which applies
+Coulomb friction and restitution from it.
+
+Tunnelling: at 100 m/s and h = 1/240 s a vertex moves 0.42 m per substep, through any
+thin wall. So the segment, circle and polygon stages are swept: they test the path
+x_prev -> x of the substep, and a vertex whose path entered the shape is put back on
+the tangent line where it entered, not on the nearest (possibly far) side.
+
+Materials combine as Box2D does: μ = √(μ_blob μ_static), e = max(e_blob, e_static).
+"""
+
+import math
+
+from .jit import inline_kernel, kernel
+
+SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
+
+
+@inline_kernel
+def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, contact_depth, contact_material):
+    contact_normal[i, 0] = nx
+    contact_normal[i, 1] = ny
+    contact_depth[i] += depth
+    contact_material[i, 0] = math.sqrt(blob_material[0] * shape_material[0])
+    contact_material[i, 1] = math.sqrt(blob_material[1] * shape_material[1])
+    contact_material[i, 2] = max(blob_material[2], shape_material[2])
+
+
+@kernel
+def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+                   contact_normal, contact_depth, contact_material):
+    # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
+    for i in range(pos.shape[0]):
+        for s in range(geom.shape[0]):
+            px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
+            d = (pos[i, 0] - px) * nx + (pos[i, 1] - py) * ny
+            if d < 0.0:
+                pos[i, 0] -= d * nx
+                pos[i, 1] -= d * ny
+                _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                        contact_normal, contact_depth, contact_material)
+
+
+@kernel
+def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+                     contact_normal, contact_depth, contact_material):
+    # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
+    # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
+    # of the line inside the segment's extent, it is put back at distance SKIN.
+    for i in range(pos.shape[0]):
+        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+        for s in range(geom.shape[0]):
+            if (max(x, x0) < aabb[s, 0] - SKIN or min(x, x0) > aabb[s, 2] + SKIN
+                    or max(y, y0) < aabb[s, 1] - SKIN or min(y, y0) > aabb[s, 3] + SKIN):
+                continue
+            ax, ay, bx, by = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
+            ex, ey = bx - ax, by - ay
+            length = math.sqrt(ex * ex + ey * ey)
+            tx, ty = ex / length, ey / length
+            nx, ny = -ty, tx
+            d0 = (x0 - ax) * nx + (y0 - ay) * ny
+            d1 = (x - ax) * nx + (y - ay) * ny
+            if d0 != 0.0:
+                side = 1.0 if d0 > 0.0 else -1.0
+            else:  # began exactly on the line: it came from where it is moving away from
+                side = -1.0 if d1 > 0.0 else 1.0
+            s0, s1 = side * d0, side * d1
+            if s1 >= SKIN:
+                continue
+            # Where the path reaches the skin line (or the end point, if it began inside it).
+            t = (s0 - SKIN) / (s0 - s1) if s0 > SKIN else 1.0
+            cx, cy = x0 + t * (x - x0), y0 + t * (y - y0)
+            u = (cx - ax) * tx + (cy - ay) * ty
+            if u < 0.0 or u > length:
+                continue
+            depth = SKIN - s1
+            x += depth * side * nx
+            y += depth * side * ny
+            _record(i, side * nx, side * ny, depth, blob_material[blob_of[i]], shape_material[s],
+                    contact_normal, contact_depth, contact_material)
+        pos[i, 0], pos[i, 1] = x, y
+
+
+@kernel
+def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+                    contact_normal, contact_depth, contact_material):
+    for i in range(pos.shape[0]):
+        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+        for s in range(geom.shape[0]):
+            if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
+                    or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
+                continue
+            cx, cy, r = geom[s, 0], geom[s, 1], geom[s, 2]
+            fx, fy = x0 - cx, y0 - cy
+            dx, dy = x - x0, y - y0
+            # Swept: first t in [0, 1] with |x0 + t d - c| = r, for a path that began outside.
+            A = dx * dx + dy * dy
+            B = 2.0 * (fx * dx + fy * dy)
+            C = fx * fx + fy * fy - r * r
+            disc = B * B - 4.0 * A * C
+            if C > 0.0 and A > 0.0 and disc >= 0.0:
+                t = (-B - math.sqrt(disc)) / (2.0 * A)
+                if 0.0 <= t <= 1.0:
+                    nx, ny = (fx + t * dx) / r, (fy + t * dy) / r
+                    d = (x - (x0 + t * dx)) * nx + (y - (y0 + t * dy)) * ny
+                    if d < 0.0:  # onto the tangent line at the entry point
+                        x -= d * nx
+                        y -= d * ny
+                        _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                                contact_normal, contact_depth, contact_material)
+                        continue
+            rx, ry = x - cx, y - cy
+            dist = math.sqrt(rx * rx + ry * ry)
+            if dist < r:
+                if dist > 0.0:
+                    nx, ny = rx / dist, ry / dist
+                else:
+                    nx, ny = 0.0, 1.0
+                x, y = cx + r * nx, cy + r * ny
+                _record(i, nx, ny, r - dist, blob_material[blob_of[i]], shape_material[s],
+                        contact_normal, contact_depth, contact_material)
+        pos[i, 0], pos[i, 1] = x, y
+
+
+@kernel
+def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+                     contact_normal, contact_depth, contact_material):
+    # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
+    for i in range(pos.shape[0]):
+        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+        for s in range(shape_offsets.shape[0] - 1):
+            if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
+                    or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
+                continue
+            inside = False
+            best_t, best = 2.0, -1
+            for k in range(shape_offsets[s], shape_offsets[s + 1]):
+                ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
+                if (ay > y) != (by > y):  # crossing number: is x inside the polygon?
+                    if x < ax + (y - ay) * (bx - ax) / (by - ay):
+                        inside = not inside
+                # Swept: did the path enter through this edge (outside its line, then inside)?
+                ex, ey = bx - ax, by - ay
+                d0 = (x0 - ax) * ey - (y0 - ay) * ex  # × |e|; the sign is what matters
+                d1 = (x - ax) * ey - (y - ay) * ex
+                if d0 >= 0.0 and d1 < 0.0:
+                    t = d0 / (d0 - d1)
+                    u = ((x0 + t * (x - x0) - ax) * ex + (y0 + t * (y - y0) - ay) * ey) / (ex * ex + ey * ey)
+                    if 0.0 <= u <= 1.0 and t < best_t:
+                        best_t, best = t, k
+            if best >= 0:
+                # Entered through edge `best`: back onto its line (on the side it came from).
+                ax, ay, bx, by = geom[best, 0], geom[best, 1], geom[best, 2], geom[best, 3]
+                ex, ey = bx - ax, by - ay
+                length = math.sqrt(ex * ex + ey * ey)
+                nx, ny = ey / length, -ex / length
+                d = (x - ax) * nx + (y - ay) * ny
+                x -= d * nx
+                y -= d * ny
+                _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                        contact_normal, contact_depth, contact_material)
+            elif inside:
+                # Began inside (spawned there, or pushed in by another stage): nearest boundary point.
+                best_d2, qx, qy = math.inf, x, y
+                for k in range(shape_offsets[s], shape_offsets[s + 1]):
+                    ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
+                    ex, ey = bx - ax, by - ay
+                    u = min(max(((x - ax) * ex + (y - ay) * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+                    cx, cy = ax + u * ex, ay + u * ey
+                    d2 = (cx - x) ** 2 + (cy - y) ** 2
+                    if d2 < best_d2:
+                        best_d2, qx, qy = d2, cx, cy
+                depth = math.sqrt(best_d2)
+                if depth > 0.0:
+                    nx, ny = (qx - x) / depth, (qy - y) / depth
+                    x, y = qx, qy
+                    _record(i, nx, ny, depth, blob_material[blob_of[i]], shape_material[s],
+                            contact_normal, contact_depth, contact_material)
+        pos[i, 0], pos[i, 1] = x, y
+
+
+COLLIDERS = {
+    "plane": _collide_plane,
+    "segment": _collide_segment,
+    "circle": _collide_circle,
+    "polygon": _collide_polygon,
+}
+
+
+def collide_static(state, model, statics):
+    """Run the collider kernel of one StaticSet (all shapes of one kind)."""
+    COLLIDERS[statics.kind](state.pos, state.prev, model.blob_of, model.material, statics.geom,
+                            statics.shape_offsets, statics.material, statics.aabb,
+                            state.contact_normal, state.contact_depth, state.contact_material)
