@@ -7,8 +7,6 @@ constraint stages move x*, and then reads the velocity back as v = (x - x_prev) 
 
 import math
 
-import numpy as np
-
 from .jit import kernel
 
 
@@ -62,47 +60,99 @@ def predict(state, model, params, h):
 
 
 @kernel
-def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_material, h, rest_speed):
+def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_material, h):
     inv_h = 1.0 / h
     for i in range(pos.shape[0]):
+        vel[i, 0] = (pos[i, 0] - prev[i, 0]) * inv_h
+        vel[i, 1] = (pos[i, 1] - prev[i, 1]) * inv_h
         D = contact_depth[i]
-        if D > 0.0:
-            nx, ny = contact_normal[i, 0], contact_normal[i, 1]
-            mu_s, mu_k, e = contact_material[i, 0], contact_material[i, 1], contact_material[i, 2]
-            # Static friction at position level (Müller et al. 2020): the surface pushed the
-            # vertex out by D this substep, so Coulomb allows it to hold a tangential slip
-            # |Δx_t| <= μ_s D. Undoing that slip is what keeps a resting blob from creeping.
-            dx, dy = pos[i, 0] - prev[i, 0], pos[i, 1] - prev[i, 1]
-            dn = dx * nx + dy * ny
-            tx, ty = dx - dn * nx, dy - dn * ny
-            stuck = tx * tx + ty * ty <= (mu_s * D) ** 2
-            if stuck:
-                pos[i, 0] -= tx
-                pos[i, 1] -= ty
-            vn_before = vel[i, 0] * nx + vel[i, 1] * ny  # the predicted, pre-contact velocity
-            vx, vy = (pos[i, 0] - prev[i, 0]) * inv_h, (pos[i, 1] - prev[i, 1]) * inv_h
-            vn = vx * nx + vy * ny
-            vtx, vty = vx - vn * nx, vy - vn * ny
-            if not stuck:
-                # Kinetic friction: |Δv_t| <= μ_k |Δv_n|, with |Δv_n| = D / h.
-                vt = math.sqrt(vtx * vtx + vty * vty)
-                if vt > 0.0:
-                    s = max(vt - mu_k * D * inv_h, 0.0) / vt
-                    vtx *= s
-                    vty *= s
-            # Restitution: leave at -e times the approach speed; below the rest speed,
-            # no bounce at all, so resting contacts do not jitter.
-            vn_target = -e * vn_before if vn_before < -rest_speed else 0.0
-            vn = max(vn, vn_target)
-            vel[i, 0] = vtx + vn * nx
-            vel[i, 1] = vty + vn * ny
+        if D == 0.0:
+            continue
+        nx, ny = contact_normal[i, 0], contact_normal[i, 1]
+        mu_s, mu_k = contact_material[i, 0], contact_material[i, 1]
+        # Static friction at position level (Müller et al. 2020): the surface pushed the
+        # vertex out by D this substep, so Coulomb allows it to hold a tangential slip
+        # |Δx_t| <= μ_s D. Undoing that slip is what keeps a resting blob from creeping.
+        dx, dy = pos[i, 0] - prev[i, 0], pos[i, 1] - prev[i, 1]
+        dn = dx * nx + dy * ny
+        tx, ty = dx - dn * nx, dy - dn * ny
+        stuck = tx * tx + ty * ty <= (mu_s * D) ** 2
+        if stuck:
+            pos[i, 0] -= tx
+            pos[i, 1] -= ty
+        vn = dn * inv_h
+        vtx, vty = tx * inv_h, ty * inv_h
+        if stuck:
+            vtx = vty = 0.0
         else:
-            vel[i, 0] = (pos[i, 0] - prev[i, 0]) * inv_h
-            vel[i, 1] = (pos[i, 1] - prev[i, 1]) * inv_h
+            # Kinetic friction: |Δv_t| <= μ_k |Δv_n|, with |Δv_n| = D / h.
+            vt = math.sqrt(vtx * vtx + vty * vty)
+            s = max(vt - mu_k * D * inv_h, 0.0) / vt
+            vtx *= s
+            vty *= s
+        # A vertex in contact does not keep approaching the surface (inelastic vertex;
+        # the bounce is the blob's, see `restitution`).
+        vn = max(vn, 0.0)
+        vel[i, 0] = vtx + vn * nx
+        vel[i, 1] = vty + vn * ny
 
 
-def update_velocities(state, model, params, h, rest_speed_factor):
-    """v = (x - x_prev) / h, then Coulomb friction and restitution at static contacts."""
-    rest_speed = rest_speed_factor * float(np.hypot(*params.gravity)) * h
+def update_velocities(state, model, params, h):
+    """v = (x - x_prev) / h, then Coulomb friction at static contacts."""
     _update_velocities(state.pos, state.prev, state.vel, state.contact_normal, state.contact_depth,
-                       state.contact_material, h, rest_speed)
+                       state.contact_material, h)
+
+
+@kernel
+def _restitution(vel, inv_mass, offsets, contact_normal, contact_depth, contact_material,
+                 impact_speed, rest_speed):
+    for b in range(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        nx = ny = m_sum = ux = uy = 0.0
+        restitution = 0.0
+        for i in range(o, e):
+            m = 1.0 / inv_mass[i]
+            m_sum += m
+            ux += m * vel[i, 0]
+            uy += m * vel[i, 1]
+            D = contact_depth[i]
+            if D > 0.0:
+                nx += D * contact_normal[i, 0]
+                ny += D * contact_normal[i, 1]
+                restitution = max(restitution, contact_material[i, 2])
+        length = math.sqrt(nx * nx + ny * ny)
+        if length == 0.0:  # airborne: any earlier impact is over
+            impact_speed[b] = 0.0
+            continue
+        nx, ny = nx / length, ny / length
+        un = (ux * nx + uy * ny) / m_sum  # centre-of-mass speed along the contact normal
+        if un < 0.0:  # still approaching: compression goes on; remember the fastest approach
+            impact_speed[b] = max(impact_speed[b], -un)
+        elif impact_speed[b] > rest_speed:
+            # Compression is over: leave at e times the approach speed (Poisson's view of
+            # restitution), by one uniform Δv that does not disturb the blob's shape.
+            dv = max(restitution * impact_speed[b] - un, 0.0)
+            for i in range(o, e):
+                vel[i, 0] += dv * nx
+                vel[i, 1] += dv * ny
+            impact_speed[b] = 0.0
+        else:
+            impact_speed[b] = 0.0
+
+
+def restitution(state, model, params, h):
+    """Bounce: a blob whose impact on statics has ended leaves at e × its approach speed.
+
+    A vertex cannot bounce on its own: the perimeter and area stages average its reversed
+    velocity away against the rest of the blob, which is still falling. So restitution
+    acts on the whole blob. While it touches statics, its centre-of-mass approach speed
+    V along the depth-weighted contact normal n̄ is tracked; once the centre stops
+    approaching, every vertex gets Δv = (e V - u·n̄) n̄. Approaches slower than
+    REST_SPEED_FACTOR |g| h never bounce, so resting contacts do not jitter.
+    """
+    rest_speed = REST_SPEED_FACTOR * math.hypot(params.gravity[0], params.gravity[1]) * h
+    _restitution(state.vel, model.inv_mass, model.offsets, state.contact_normal, state.contact_depth,
+                 state.contact_material, state.impact_speed, rest_speed)
+
+
+REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)

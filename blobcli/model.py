@@ -14,9 +14,6 @@ import numpy as np
 
 from .scene import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
 
-REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
-
-
 @dataclass(frozen=True)
 class Params:
     """Resolved time stepping and world settings."""
@@ -59,6 +56,7 @@ class Model:
     material: np.ndarray  # (B, 3): static friction μ_s, kinetic μ_k, restitution e
     mass: np.ndarray  # (B,) kg
     statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
+    bounces: bool  # some blob can bounce off a static (statics present, some restitution > 0)
 
     @property
     def blob_count(self) -> int:
@@ -80,6 +78,7 @@ class State:
     contact_normal: np.ndarray  # (N, 2) unit normal of the vertex's static contact
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
     contact_material: np.ndarray  # (N, 3) combined μ_s, μ_k, e of that contact
+    impact_speed: np.ndarray  # (B,) m/s, fastest approach of the blob's ongoing impact on statics
 
 
 def blob_points(b: BlobDef) -> np.ndarray:
@@ -135,14 +134,16 @@ def build(scene: Scene) -> tuple[Model, State]:
     nxt[offsets[1:] - 1] = offsets[:-1]
     rest_length = np.hypot(*(pos[nxt] - pos).T)
 
+    statics = build_statics(scene.statics)
     model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
                   rest_length=rest_length, rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
-                  statics=build_statics(scene.statics))
+                  statics=statics, bounces=bool(statics) and bool(
+                      material[:, 2].any() or any(s.material[:, 2].any() for s in statics)))
     n = len(pos)
     state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
                   contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
-                  contact_material=np.zeros((n, 3)))
+                  contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)))
     return model, state
 
 

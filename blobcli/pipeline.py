@@ -6,8 +6,8 @@ a stage a scene does not need (damping off, no statics) is not run at all.
 """
 
 from .area import AREA_METHODS
-from .integrate import damp_relative, predict, update_velocities
-from .model import REST_SPEED_FACTOR, Model, Params, State
+from .integrate import damp_relative, predict, restitution, update_velocities
+from .model import Model, Params, State
 from .perimeter import solve_perimeter
 from .statics import collide_static
 
@@ -25,4 +25,6 @@ def step(state: State, model: Model, params: Params) -> None:
             solve_area(state, model, params, h)              # exact: a h² + b h + c = 0
             for statics in model.statics:                    # one pass per collider kind present
                 collide_static(state, model, statics)
-        update_velocities(state, model, params, h, REST_SPEED_FACTOR)  # friction, restitution
+        update_velocities(state, model, params, h)          # v = (x - x_prev) / h, friction
+        if model.bounces:
+            restitution(state, model, params, h)             # blobs leave statics at e × approach speed

@@ -84,7 +84,7 @@ class SceneSettings:
     iterations: int = key(2, "", "solver iterations per substep", "int", at_least(1))
     gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
-    damping: float = key(1.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass (deformation and spin)", "float", nonnegative)
+    damping: float = key(2.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass (deformation and spin)", "float", nonnegative)
 
 
 @dataclass(frozen=True)
@@ -214,8 +214,10 @@ def first_crossing(points) -> tuple[int, int] | None:
         o2 = orient(a[i], b[i], b[j])
         o3 = orient(a[j], b[j], a[i])
         o4 = orient(a[j], b[j], b[i])
-        hit = (o1 != o2) & (o3 != o4)
-        hit |= (o1 == 0) & (o2 == 0) & _overlap(a[i], b[i], a[j], b[j])  # collinear overlap
+        # Opposite sides both ways, or collinear; either way the boxes must overlap
+        # (nearly collinear edges along a floor get rounding-noise signs).
+        hit = ((o1 != o2) & (o3 != o4)) | ((o1 == 0) & (o2 == 0))
+        hit &= _overlap(a[i], b[i], a[j], b[j])
         if hit.any():
             return i, int(j[np.argmax(hit)])
     return None
@@ -254,8 +256,10 @@ class _Problems:
     def __init__(self, source: str, lines: dict):
         self.source, self.lines, self.items = source, lines, []
 
-    def add(self, path: tuple, message: str, got=None, show_got=True):
-        text = f"{self.source}:{line_of(self.lines, path)}: {fmt_path(path)}: {message}"
+    def add(self, path: tuple, message: str, got=None, show_got=True, line_path=None):
+        """One problem at `path`; its line is that of `line_path` (default: `path`)."""
+        line = line_of(self.lines, line_path or path)
+        text = f"{self.source}:{line}: {fmt_path(path)}: {message}"
         if show_got:
             text += f" (got {fmt_value(got)})"
         self.items.append(text)
@@ -346,13 +350,12 @@ def _table(cls, raw, path: tuple, problems: _Problems, allowed=None):
 
 
 def _check_polygon(points, path, problems: _Problems):
-    if abs(signed_area(points)) <= 1e-12 * max(1.0, max(abs(c) for p in points for c in p)) ** 2:
-        problems.add(path, "polygon has zero area", points)
-        return
     crossing = first_crossing(points)
     if crossing:
         i, j = crossing
         problems.add(path, f"polygon intersects itself (edges {i} and {j} cross)", points)
+    elif abs(signed_area(points)) <= 1e-12 * max(1.0, max(abs(c) for p in points for c in p)) ** 2:
+        problems.add(path, "polygon has zero area", points)
 
 
 def _check_blob(b: BlobDef, path, problems: _Problems):
@@ -367,7 +370,7 @@ def _check_blob(b: BlobDef, path, problems: _Problems):
     if b.static_friction < b.friction:
         problems.add(path + ("static_friction",), f"must be >= friction ({b.friction})", b.static_friction)
     if b.grid != (1, 1) and b.spacing is None:
-        problems.add(path + ("spacing",), "required with grid", show_got=False)
+        problems.add(path + ("spacing",), "required with grid", show_got=False, line_path=path + ("grid",))
     elif b.spacing is not None and any(n > 1 and d == 0 for n, d in zip(b.grid, b.spacing)):
         problems.add(path + ("spacing",), "must be > 0 along an axis with more than one copy", b.spacing)
 
@@ -552,7 +555,16 @@ def reference_markdown() -> str:
         out.append(f"#### `{header}`\n\n| key | default | unit | meaning |\n|---|---|---|---|")
         for f in fields(cls):
             d = f.default
-            default = "—" if d is None else f"`{_toml_value(round(d, 6) if isinstance(d, float) else d)}`"
+            if d is None:
+                default = "—"
+            elif isinstance(d, float) and d == 1 / 60:
+                default = "`1/60` (0.01667)"
+            else:
+                default = f"`{_toml_value(d)}`"
             out.append(f"| `{f.name}` | {default} | {f.metadata['unit'] or ''} | {f.metadata['doc']} |")
         out.append("")
     return "\n".join(out)
+
+
+if __name__ == "__main__":  # python -m blobcli.scene: print the README's scene reference
+    print(reference_markdown(), end="")

@@ -1,0 +1,88 @@
+"""The exact area projection ("kot"): random and degenerate polygons, both windings."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from blobcli.area import _area_kot
+from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, polygon_area
+
+
+def star_polygon(rng, n, wobble):
+    """A simple (star-shaped) polygon: radius varies with angle, angles increase."""
+    theta = np.sort(rng.uniform(0, 2 * np.pi, n))
+    r = 1.0 + wobble * rng.uniform(-1, 1, n)
+    return np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1) + rng.normal(0, 3, 2)
+
+
+def project(points, target, inv_mass=None):
+    pos = np.ascontiguousarray(points, dtype=np.float64).copy()
+    n = len(pos)
+    inv_mass = np.ones(n) if inv_mass is None else inv_mass
+    _area_kot(pos, inv_mass, np.array([0, n], dtype=np.int64), np.array([target]))
+    return pos
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 80), wobble=st.floats(0.0, 0.6),
+       ratio=st.floats(0.5, 1.5), clockwise=st.booleans())
+def test_projection_hits_target_area_exactly(seed, n, wobble, ratio, clockwise):
+    rng = np.random.default_rng(seed)
+    p = star_polygon(rng, n, wobble)
+    if clockwise:
+        p = p[::-1]
+    target = ratio * polygon_area(p)  # same sign as the winding
+    out = project(p, target)
+    assert abs(polygon_area(out) - target) <= AREA_ROUNDOFF * abs(target) * 10
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 60), ratio=st.floats(0.7, 1.3))
+def test_projection_conserves_momentum_with_unequal_masses(seed, n, ratio):
+    rng = np.random.default_rng(seed)
+    p = star_polygon(rng, n, 0.3)
+    inv_mass = rng.uniform(0.5, 4.0, n)
+    out = project(p, ratio * polygon_area(p), inv_mass)
+    moved = ((out - p) / inv_mass[:, None]).sum(axis=0)  # Σ m Δx
+    assert np.all(np.abs(moved) <= MOMENTUM_ROUNDOFF * np.abs(p).max() * n)
+
+
+def test_projection_is_identity_at_target():
+    p = star_polygon(np.random.default_rng(1), 20, 0.2)
+    out = project(p, polygon_area(p))
+    assert np.max(np.abs(out - p)) < 1e-14 * np.abs(p).max() * 10
+
+
+def test_smallest_root_is_taken():
+    # A square of area 4 to area 4.41: moving each vertex outward by the least h.
+    p = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    out = project(p, 4.41)
+    np.testing.assert_allclose(out, p * 1.05, rtol=1e-14)
+
+
+def test_degenerate_a_zero_triangle():
+    # For a triangle Σ p_i × p_{i+1} (the h² term) vanishes: the quadratic is linear.
+    p = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 1.0]])
+    out = project(p, 2.0)
+    assert abs(polygon_area(out) - 2.0) < 1e-14
+
+
+def test_unreachable_target_moves_to_nearest_area_without_nan():
+    # A polygon collapsed onto a line (area 0): the result must stay finite.
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
+    out = project(p, 1.0)
+    assert np.all(np.isfinite(out))
+    # A flipped (inverted) polygon with negative discriminant: target far beyond reach.
+    q = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    out = project(q, -50.0)
+    assert np.all(np.isfinite(out))
+    assert polygon_area(out) < polygon_area(q)  # moved toward the target, as far as the parabola allows
+
+
+def test_negative_discriminant_takes_parabola_vertex():
+    # Square, unit masses: A(h) = 4 + 4h·... ; ask for an area below the parabola's minimum.
+    p = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    # p_i = ½(y_{i+1}-y_{i-1}, x_{i-1}-x_{i+1}) = (x_i, y_i) here, so A(h) = 4 (1 + h)²,
+    # minimum 0 at h = -1. Any negative target is unreachable: expect the vertex h = -1.
+    out = project(p, -1.0)
+    np.testing.assert_allclose(out, 0.0, atol=1e-15)

@@ -1,0 +1,223 @@
+"""The command line as a user meets it: exit codes, messages, files, signals."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from blobcli import read_trajectory
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+
+
+def blobsim(*args, cwd=None, **kw):
+    return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=300, **kw)
+
+
+def write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+ONE_BLOB = """
+[scene]
+steps = 120
+[[blob]]
+name = "solo"
+center = [0.0, 1.0]
+radius = 0.5
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+"""
+
+
+def test_help_is_instant_and_imports_nothing_heavy():
+    out = subprocess.run([sys.executable, "-c", "import sys, blobcli.cli as c\n"
+                          "try:\n    c.main(['--help'])\nexcept SystemExit: pass\n"
+                          "print(sorted(m for m in ('numba', 'h5py', 'numpy', 'tqdm') if m in sys.modules))"],
+                         capture_output=True, text=True)
+    assert out.stdout.strip().endswith("[]")
+
+
+def test_run_writes_a_complete_h5md_file_and_one_summary_line(tmp_path):
+    out = tmp_path / "o.h5"
+    r = blobsim("run", write(tmp_path, ONE_BLOB), "-o", out, "-q")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("blobsim: 120 steps, 2 s simulated in ")
+    assert "worst area error" in lines[0] and str(out) in lines[0]
+    assert r.stderr == ""
+    with h5py.File(out) as f:
+        assert f.attrs["complete"] and f.attrs["blobsim_format"] == 1
+        assert list(f["h5md"].attrs["version"]) == [1, 1]
+        assert f["h5md/creator"].attrs["name"] == "blobsim" and "name" in f["h5md/author"].attrs
+        assert f["particles/blobs/box"].attrs["dimension"] == 2
+        assert [b.decode() for b in f["particles/blobs/box"].attrs["boundary"]] == ["none", "none"]
+        pos = f["particles/blobs/position"]
+        assert pos["value"].shape == (121, 32, 2) and pos["value"].dtype == np.float64
+        assert pos["step"].dtype == np.int64 and list(pos["step"][:3]) == [0, 1, 2]
+        np.testing.assert_array_equal(pos["time"][...], pos["step"][...] * (1 / 60))
+        assert f["observables/area/value"].shape == (121, 1)
+        assert f["observables/kinetic_energy/value"].shape == (121, 1)
+        assert list(f["parameters/blob_offsets"][...]) == [0, 32]
+        assert [n.decode() for n in f["parameters/blob_names"][...]] == ["solo"]
+        p = f["parameters"].attrs
+        assert (p["dt"], p["substeps"], p["iterations"], p["method"]) == (1 / 60, 4, 2, "kot")
+        assert "numba" in p and "numpy" in p
+        assert f["parameters/scene"][()].decode() == ONE_BLOB
+        assert f["restart"].attrs["step"] == 120
+        np.testing.assert_array_equal(f["restart/position"][...], pos["value"][-1])
+    assert not Path(str(out) + ".partial").exists()
+
+
+def test_every_records_every_kth_step_and_cli_overrides(tmp_path):
+    scene = write(tmp_path, ONE_BLOB.replace("[scene]", "[output]\nevery = 10\n[scene]"))
+    r = blobsim("run", scene, "-o", tmp_path / "o.h5", "--duration", "1.0", "-q")
+    assert r.returncode == 0, r.stderr
+    t = read_trajectory(tmp_path / "o.h5")
+    assert list(t.step) == list(range(0, 61, 10))
+
+
+def test_default_output_path_is_outputs_name(tmp_path):
+    r = blobsim("run", write(tmp_path, ONE_BLOB, "named.toml"), "--steps", "5", "-q", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "outputs" / "named.h5").exists()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[scene]\ndt = -1.0\n" + ONE_BLOB.split("[scene]\nsteps = 120")[1], "s.toml:2: scene.dt: must be > 0 (got -1.0)"),
+    ("", "s.toml:1: blob: a scene needs at least one [[blob]]"),
+    ("[scene\n", "s.toml:1:7: TOML syntax error"),
+])
+def test_bad_scene_exits_2_with_no_traceback_and_no_output(tmp_path, text, message):
+    out = tmp_path / "o.h5"
+    r = blobsim("run", write(tmp_path, text), "-o", out)
+    assert r.returncode == 2
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert r.stderr.startswith(str(tmp_path / "s.toml"))
+    assert not out.exists() and not Path(str(out) + ".partial").exists()
+
+
+def test_bad_arguments_exit_2(tmp_path):
+    scene = write(tmp_path, ONE_BLOB)
+    for args in (["--steps", "0"], ["--duration", "nan"], ["--method", "magic"], ["--steps", "3", "--duration", "1"]):
+        r = blobsim("run", scene, *args)
+        assert r.returncode == 2 and "Traceback" not in r.stderr, args
+
+
+def test_check_prints_the_resolved_scene_and_flags_bad_ones(tmp_path):
+    r = blobsim("check", *SCENES)
+    assert r.returncode == 0, r.stderr
+    assert "dt = 0.016666666666666666  # s" in r.stdout and "compliance = 0.0002  # m/N" in r.stdout
+    bad = write(tmp_path, "[[blob]]\ncenter = [0.0, 1.0]\nradius = -0.5\n", "bad.toml")
+    r = blobsim("check", SCENES[0], bad)
+    assert r.returncode == 2
+    assert r.stderr.strip() == f"{bad}:3: blob[0].radius: must be > 0 (got -0.5)"
+
+
+def test_missing_scene_file_exits_2(tmp_path):
+    r = blobsim("run", tmp_path / "none.toml")
+    assert r.returncode == 2 and r.stderr.strip() == f"{tmp_path / 'none.toml'}: no such file"
+
+
+LONG = """
+[scene]
+steps = 1000000
+[[blob]]
+center = [0.0, 1.0]
+radius = 0.3
+grid = [10, 10]
+spacing = [0.8, 0.8]
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+"""
+
+
+def start_long_run(tmp_path):
+    out = tmp_path / "long.h5"
+    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", str(write(tmp_path, LONG)), "-o", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = Path(str(out) + ".partial")
+    deadline = time.monotonic() + 120
+    while not partial.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(2.0)  # let it compute (and compile) for a while
+    return proc, out, partial
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_interrupt_keeps_every_computed_frame_in_a_readable_file(tmp_path, signum):
+    proc, out, partial = start_long_run(tmp_path)
+    proc.send_signal(signum)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted" in stdout
+    t = read_trajectory(out)
+    assert not t.complete and len(t.step) > 1
+    assert list(t.step) == list(range(len(t.step)))  # every frame up to the stop, none missing
+    steps_done = int(stdout.split(" steps")[0].split()[-1])
+    assert t.step[-1] == steps_done
+    assert np.all(np.isfinite(t.position))
+    assert not partial.exists()
+
+
+def test_killed_run_never_leaves_an_unreadable_file_at_the_path(tmp_path):
+    proc, out, partial = start_long_run(tmp_path)
+    proc.kill()
+    proc.wait(timeout=30)
+    assert not out.exists()  # only the .partial holds the unfinished run
+
+
+def test_runaway_stops_with_exit_1_naming_step_blob_vertex(tmp_path, monkeypatch):
+    """A stage that produces NaN at step 5: the run stops there and keeps frames 0..4."""
+    import blobcli.run as run_module
+    from blobcli import parse_scene
+    real_step = run_module.step
+    calls = []
+
+    def exploding_step(state, model, params):
+        real_step(state, model, params)
+        calls.append(1)
+        if len(calls) == 5:
+            state.pos[40, 1] = np.nan
+
+    monkeypatch.setattr(run_module, "step", exploding_step)
+    scene = parse_scene(ONE_BLOB.replace("[[blob]]", "[[blob]]\nname = \"a\"\ncenter = [5.0, 1.0]\nradius = 0.5\n[[blob]]", 1),
+                        "s.toml")
+    result = run_module.simulate(scene, tmp_path / "o.h5")
+    assert result.status == "runaway" and result.exit_code == 1
+    assert result.message.startswith("step 5: blob 1 (solo) vertex 8 ")
+    t = read_trajectory(tmp_path / "o.h5")
+    assert not t.complete and list(t.step) == [0, 1, 2, 3, 4]
+
+
+def test_two_runs_are_bit_identical(tmp_path):
+    scene = ROOT / "scenes" / "pegboard.toml"
+    for name in ("a.h5", "b.h5"):
+        assert blobsim("run", scene, "-o", tmp_path / name, "--steps", "200", "-q").returncode == 0
+    a, b = read_trajectory(tmp_path / "a.h5"), read_trajectory(tmp_path / "b.h5")
+    assert a.position.tobytes() == b.position.tobytes()
+
+
+@pytest.mark.parametrize("scene", SCENES, ids=[s.stem for s in SCENES])
+def test_every_shipped_scene_runs(tmp_path, scene):
+    from blobcli import load_scene, simulate
+    from blobcli.scene import with_overrides
+    sc = with_overrides(load_scene(scene), steps=300)
+    result = simulate(sc, tmp_path / "o.h5")
+    assert result.status == "complete"
+    t = read_trajectory(tmp_path / "o.h5")
+    assert len(t.step) == 301 and np.all(np.isfinite(t.position))
