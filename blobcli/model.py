@@ -57,6 +57,12 @@ class Model:
     mass: np.ndarray  # (B,) kg
     statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
     bounces: bool  # some blob can bounce off a static (statics present, some restitution > 0)
+    orient: np.ndarray  # (B,) +1 counter-clockwise, -1 clockwise: the sign of outward normals
+
+    @property
+    def collides(self) -> bool:
+        """Blob–blob collision stages run only with more than one blob."""
+        return self.blob_count > 1
 
     @property
     def blob_count(self) -> int:
@@ -79,6 +85,15 @@ class State:
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
     contact_material: np.ndarray  # (N, 3) combined μ_s, μ_k, e of that contact
     impact_speed: np.ndarray  # (B,) m/s, fastest approach of the blob's ongoing impact on statics
+    # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
+    center: np.ndarray  # (B, 2) m, vertex-average centres
+    radius: np.ndarray  # (B,) m, farthest vertex from the centre
+    blob_box: np.ndarray  # (B, 4) xmin, ymin, xmax, ymax
+    pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
+    c_vertex: np.ndarray  # (2N,) int64, contact k: vertex ...
+    c_edge: np.ndarray  # (2N,) int64, ... pushed out of the edge starting at this vertex ...
+    c_t: np.ndarray  # (2N,) ... at this barycentric position along it
+    blob_contact_depth: np.ndarray  # (N,) m, a vertex's total push-out by blobs this substep
 
 
 def blob_points(b: BlobDef) -> np.ndarray:
@@ -139,11 +154,15 @@ def build(scene: Scene) -> tuple[Model, State]:
                   rest_length=rest_length, rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
                   statics=statics, bounces=bool(statics) and bool(
-                      material[:, 2].any() or any(s.material[:, 2].any() for s in statics)))
+                      material[:, 2].any() or any(s.material[:, 2].any() for s in statics)),
+                  orient=np.sign(rest_area))
     n = len(pos)
     state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
                   contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
-                  contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)))
+                  contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
+                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), blob_box=np.zeros((len(counts), 4)),
+                  pairs=np.zeros((0, 2), dtype=np.int64), c_vertex=np.zeros(2 * n, dtype=np.int64),
+                  c_edge=np.zeros(2 * n, dtype=np.int64), c_t=np.zeros(2 * n), blob_contact_depth=np.zeros(n))
     return model, state
 
 

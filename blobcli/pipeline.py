@@ -6,6 +6,7 @@ a stage a scene does not need (damping off, no statics) is not run at all.
 """
 
 from .area import AREA_METHODS
+from .collide import collide_blobs, find_blob_pairs
 from .integrate import damp_relative, predict, restitution, update_velocities
 from .model import Model, Params, State
 from .perimeter import solve_perimeter
@@ -20,9 +21,13 @@ def step(state: State, model: Model, params: Params) -> None:
         if params.damping > 0.0:
             damp_relative(state, model, params, h)        # (v - v_cm) *= exp(-damping h)
         predict(state, model, params, h)                     # x_prev <- x, v += g h, x += v h
+        if model.collides:
+            find_blob_pairs(state, model, params)            # broad phase: uniform grid
         for _ in range(params.iterations):
             solve_perimeter(state, model, params, h)         # XPBD edge lengths
             solve_area(state, model, params, h)              # exact: a h² + b h + c = 0
+            if model.collides:
+                collide_blobs(state, model, params)          # vertex out of the other blob, friction
             for statics in model.statics:                    # one pass per collider kind present
                 collide_static(state, model, statics)
         update_velocities(state, model, params, h)          # v = (x - x_prev) / h, friction

@@ -1,0 +1,294 @@
+"""Blob–blob collision stages: broad phase, contacts, deep-overlap fallback, friction.
+
+Broad phase (once per substep): each blob's centre is the plain average of its vertices
+(not the polygon centroid, which breaks when a polygon self-intersects) and its radius is
+its farthest vertex. A uniform grid of cells one largest diameter wide bins the centres, so
+only blobs in neighbouring cells are compared: linear in the blob count. Pairs farther apart
+than r_a + r_b + margin are skipped. Pairs come out in a fixed order (by first blob, then
+grid neighbour, then blob index), so runs are bit-identical.
+
+Narrow phase (every iteration, both directions): a vertex p of A inside polygon B is pushed
+out to B's nearest edge, preferring edges whose outward normal opposes p's own (as JellyCar's
+and Gish's engines do), so a vertex is not pulled through to B's far side. The point–edge
+constraint, with q = (1 - t) x_0 + t x_1 the closest point on edge (x_0, x_1) and n its
+outward normal:
+    C = (p - q) · n >= 0,   ∇_p C = n,   ∇_0 C = -(1 - t) n,   ∇_1 C = -t n,
+    λ = -C / (w_p + (1 - t)² w_0 + t² w_1),
+    Δp = w_p λ n,   Δx_0 = -(1 - t) w_0 λ n,   Δx_1 = -t w_1 λ n.
+Σ m Δx = λ n (1 - (1 - t) - t) = 0: contacts never change total momentum, with one exception
+under gravity. Gauss-Seidel moves a heavy blob resting on a much lighter one by only
+w_heavy / (w_heavy + w_light) of their overlap per iteration (1/150 at a mass ratio of 150), so
+the heavy one ploughed through the light one and tangled its polygon. So when a lighter blob
+is below a heavier one, its inverse mass in their contacts becomes w_light (w_heavy / w_light)^2f,
+with f = Δz / (r_a + r_b) in [0, 1]: directly below, it acts as much heavier than the upper blob
+as it really is lighter, and carries the load to the ground (mass scaling for stacks, after
+Macklin et al. 2014, but only where it is needed: applied to every contact it pumped momentum
+into a pile of equal blobs and blew it apart). Side by side, equal masses, or zero gravity: f or
+the ratio is 1, and momentum is exact.
+
+Deep overlap (a blob driven far into another, or spawned overlapping): when either centre is
+inside the other polygon, vertex–edge pushes have no sensible "nearest" side. Then, as the
+seed author's own code does, a line perpendicular to c_B - c_A splits the two, placed at
+c_A + (c_B - c_A) r_A / (r_A + r_B); each blob's vertices beyond it are put back on it, and
+both blobs are shifted by one common Δx that cancels the momentum this added.
+
+Friction (with each push, Müller et al. 2020): Coulomb on the relative tangential slip Δx_t of
+vertex and edge point since the substep began, with the same generalized masses as the push:
+undone entirely if |Δx_t| <= μ_s D, where D is the vertex's total push-out this substep
+(static); else cut by μ_k times this push (kinetic). It is the rule of the static contacts,
+and it runs inside the iteration so that the statics, which come after it, always have the
+last word (friction applied after them pushed a crushed blob through a wall). Coefficients of
+the two blobs combine as √(μ_a μ_b).
+"""
+
+import math
+
+import numpy as np
+
+from .jit import inline_kernel, kernel
+
+BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
+
+
+@kernel
+def _blob_bounds(pos, offsets, center, radius, box):
+    for b in range(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        cx = cy = 0.0
+        x0 = y0 = math.inf
+        x1 = y1 = -math.inf
+        for i in range(o, e):
+            x, y = pos[i, 0], pos[i, 1]
+            cx += x
+            cy += y
+            x0, y0, x1, y1 = min(x0, x), min(y0, y), max(x1, x), max(y1, y)
+        cx /= e - o
+        cy /= e - o
+        r2 = 0.0
+        for i in range(o, e):
+            r2 = max(r2, (pos[i, 0] - cx) ** 2 + (pos[i, 1] - cy) ** 2)
+        center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
+        box[b, 0], box[b, 1], box[b, 2], box[b, 3] = x0, y0, x1, y1
+
+
+@kernel
+def _find_pairs(center, radius):
+    B = center.shape[0]
+    r_max = radius.max()
+    cell = 2.0 * r_max * (1.0 + BROAD_MARGIN)
+    x0, y0 = center[:, 0].min(), center[:, 1].min()
+    nx = int((center[:, 0].max() - x0) / cell) + 1
+    ny = int((center[:, 1].max() - y0) / cell) + 1
+    while nx * ny > 4 * B + 64:  # blobs spread far apart: coarser cells keep memory O(B)
+        cell *= 2.0
+        nx = int((center[:, 0].max() - x0) / cell) + 1
+        ny = int((center[:, 1].max() - y0) / cell) + 1
+    # Counting sort of the blobs by cell (stable: within a cell, by blob index).
+    cell_of = np.empty(B, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for b in range(B):
+        c = int((center[b, 1] - y0) / cell) * nx + int((center[b, 0] - x0) / cell)
+        cell_of[b] = c
+        start[c + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(B, np.int64)
+    for b in range(B):
+        order[fill[cell_of[b]]] = b
+        fill[cell_of[b]] += 1
+    # Two passes over the 3 × 3 neighbourhoods: count, then fill.
+    pairs = np.empty((0, 2), np.int64)
+    for fill_pass in range(2):
+        count = 0
+        for a in range(B):
+            ix, iy = cell_of[a] % nx, cell_of[a] // nx
+            for jy in range(max(iy - 1, 0), min(iy + 2, ny)):
+                for jx in range(max(ix - 1, 0), min(ix + 2, nx)):
+                    c = jy * nx + jx
+                    for k in range(start[c], start[c + 1]):
+                        b = order[k]
+                        if b <= a:
+                            continue
+                        reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
+                        if (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2 < reach * reach:
+                            if fill_pass == 1:
+                                pairs[count, 0], pairs[count, 1] = a, b
+                            count += 1
+        if fill_pass == 0:
+            pairs = np.empty((count, 2), np.int64)
+    return pairs
+
+
+def find_blob_pairs(state, model, params):
+    """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box)
+    state.pairs = _find_pairs(state.center, state.radius)
+    state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
+
+
+@inline_kernel
+def _inside(pos, o, e, x, y):
+    """Crossing-number test: is (x, y) inside the closed polygon pos[o:e]?"""
+    inside = False
+    j = e - 1
+    for i in range(o, e):
+        ax, ay, bx, by = pos[j, 0], pos[j, 1], pos[i, 0], pos[i, 1]
+        if (ay > y) != (by > y):
+            if x < ax + (y - ay) * (bx - ax) / (by - ay):
+                inside = not inside
+        j = i
+    return inside
+
+
+@inline_kernel
+def _separate_deep(pos, inv_mass, offsets, a, b, center, radius):
+    """Deep-overlap fallback for pair (a, b): split them along a line between the centres."""
+    ux, uy = center[b, 0] - center[a, 0], center[b, 1] - center[a, 1]
+    dist = math.sqrt(ux * ux + uy * uy)
+    if dist > 0.0:
+        ux, uy = ux / dist, uy / dist
+    else:
+        ux, uy = 1.0, 0.0
+    share = radius[a] / (radius[a] + radius[b])
+    sx, sy = center[a, 0] + (center[b, 0] - center[a, 0]) * share, center[a, 1] + (center[b, 1] - center[a, 1]) * share
+    px = py = m_sum = 0.0
+    for blob, side in ((a, 1.0), (b, -1.0)):
+        for i in range(offsets[blob], offsets[blob + 1]):
+            m = 1.0 / inv_mass[i]
+            m_sum += m
+            d = ((pos[i, 0] - sx) * ux + (pos[i, 1] - sy) * uy) * side  # > 0: beyond the line
+            if d > 0.0:
+                pos[i, 0] -= d * side * ux
+                pos[i, 1] -= d * side * uy
+                px -= m * d * side * ux
+                py -= m * d * side * uy
+    # One common shift of both blobs removes the momentum the pushes added.
+    for blob in (a, b):
+        for i in range(offsets[blob], offsets[blob + 1]):
+            pos[i, 0] -= px / m_sum
+            pos[i, 1] -= py / m_sum
+
+
+@kernel
+def _detect(pos, offsets, blob_of, pairs, center, radius, blob_box, orient, inv_mass,
+            c_vertex, c_edge, c_t):
+    """Contacts (vertex, edge start, t) of every pair, both directions; deep pairs separated."""
+    count = 0
+    cap = c_vertex.shape[0]
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, 0], pairs[k, 1]
+        if (_inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1])
+                or _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])):
+            _separate_deep(pos, inv_mass, offsets, a, b, center, radius)
+            continue
+        for A, B in ((a, b), (b, a)):
+            oa, ea, ob, eb = offsets[A], offsets[A + 1], offsets[B], offsets[B + 1]
+            for i in range(oa, ea):
+                x, y = pos[i, 0], pos[i, 1]
+                if x < blob_box[B, 0] or x > blob_box[B, 2] or y < blob_box[B, 1] or y > blob_box[B, 3]:
+                    continue
+                if not _inside(pos, ob, eb, x, y):
+                    continue
+                # p's outward normal, from its neighbours (sign from A's winding).
+                ip = i - 1 if i > oa else ea - 1
+                inx = i + 1 if i + 1 < ea else oa
+                vnx = orient[A] * (pos[inx, 1] - pos[ip, 1])
+                vny = -orient[A] * (pos[inx, 0] - pos[ip, 0])
+                best_opp = best_any = math.inf
+                e_opp = e_any = -1
+                t_opp = t_any = 0.0
+                for j in range(ob, eb):
+                    jn = j + 1 if j + 1 < eb else ob
+                    ex, ey = pos[jn, 0] - pos[j, 0], pos[jn, 1] - pos[j, 1]
+                    len2 = ex * ex + ey * ey
+                    if len2 == 0.0:
+                        continue
+                    t = min(max(((x - pos[j, 0]) * ex + (y - pos[j, 1]) * ey) / len2, 0.0), 1.0)
+                    d2 = (pos[j, 0] + t * ex - x) ** 2 + (pos[j, 1] + t * ey - y) ** 2
+                    if d2 < best_any:
+                        best_any, e_any, t_any = d2, j, t
+                    if orient[B] * (ey * vnx - ex * vny) < 0.0 and d2 < best_opp:  # edge normal · p normal < 0
+                        best_opp, e_opp, t_opp = d2, j, t
+                if e_opp < 0:
+                    e_opp, t_opp = e_any, t_any
+                if e_opp >= 0 and count < cap:
+                    c_vertex[count], c_edge[count], c_t[count] = i, e_opp, t_opp
+                    count += 1
+    return count
+
+
+@kernel
+def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_vertex, c_edge, c_t, count, contact_depth,
+             center, radius, up_x, up_y):
+    for k in range(count):
+        p, e0, t = c_vertex[k], c_edge[k], c_t[k]
+        blob = blob_of[e0]
+        a = blob_of[p]
+        wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
+        # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
+        # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
+        f = ((center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y) / (radius[a] + radius[blob])
+        if f > 0.0 and we > wp:  # the vertex's blob is above and heavier
+            we *= (wp / we) ** min(2.0 * f, 2.0)
+        elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
+            wp *= (we / wp) ** min(-2.0 * f, 2.0)
+        e1 = e0 + 1 if e0 + 1 < offsets[blob + 1] else offsets[blob]
+        ex, ey = pos[e1, 0] - pos[e0, 0], pos[e1, 1] - pos[e0, 1]
+        length = math.sqrt(ex * ex + ey * ey)
+        if length == 0.0:
+            continue
+        nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
+        qx, qy = pos[e0, 0] + t * ex, pos[e0, 1] + t * ey
+        C = (pos[p, 0] - qx) * nx + (pos[p, 1] - qy) * ny
+        if C >= 0.0:
+            continue
+        if t == 0.0 or t == 1.0:
+            # Nearest point is a corner, equally near to both its edges: push toward it,
+            # along q - p. (Along the normal of whichever edge came first, every push was
+            # turned the same way round the ring, and stacked blobs slid off each other.)
+            dx, dy = qx - pos[p, 0], qy - pos[p, 1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            if dist == 0.0:
+                continue
+            nx, ny, C = dx / dist, dy / dist, -dist
+        w0, w1 = (1.0 - t) * we, t * we
+        W = wp + (1.0 - t) * w0 + t * w1
+        # Normal push: λ = -C / W along n.
+        _apply(pos, p, e0, e1, wp, w0, w1, -C / W * nx, -C / W * ny)
+        contact_depth[p] += -C
+        # Friction on the relative slip of p against q since the substep began.
+        rx = (pos[p, 0] - prev[p, 0]) - (1.0 - t) * (pos[e0, 0] - prev[e0, 0]) - t * (pos[e1, 0] - prev[e1, 0])
+        ry = (pos[p, 1] - prev[p, 1]) - (1.0 - t) * (pos[e0, 1] - prev[e0, 1]) - t * (pos[e1, 1] - prev[e1, 1])
+        rn = rx * nx + ry * ny
+        tx, ty = rx - rn * nx, ry - rn * ny
+        slip = math.sqrt(tx * tx + ty * ty)
+        if slip == 0.0:
+            continue
+        mu_s = math.sqrt(material[a, 0] * material[blob, 0])
+        mu_k = math.sqrt(material[a, 1] * material[blob, 1])
+        # Static: undo the whole slip; kinetic: cut it by μ_k times this push (|f_t| <= μ |f_n|).
+        cut = 1.0 if slip <= mu_s * contact_depth[p] else min(-mu_k * C / slip, 1.0)
+        _apply(pos, p, e0, e1, wp, w0, w1, -cut / W * tx, -cut / W * ty)
+
+
+@inline_kernel
+def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
+    """Move p by wp d and the edge ends by -w d: the relative motion changes by W d, momentum by 0."""
+    pos[p, 0] += wp * dx
+    pos[p, 1] += wp * dy
+    pos[e0, 0] -= w0 * dx
+    pos[e0, 1] -= w0 * dy
+    pos[e1, 0] -= w1 * dx
+    pos[e1, 1] -= w1 * dy
+
+
+def collide_blobs(state, model, params):
+    """Narrow phase, then resolution with friction, for this iteration's blob pairs."""
+    count = _detect(state.pos, model.offsets, model.blob_of, state.pairs, state.center, state.radius,
+                    state.blob_box, model.orient, model.inv_mass, state.c_vertex, state.c_edge, state.c_t)
+    g = np.hypot(*params.gravity)
+    up = -params.gravity / g if g > 0 else np.zeros(2)
+    _resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
+             state.c_vertex, state.c_edge, state.c_t, count, state.blob_contact_depth, state.center, state.radius,
+             up[0], up[1])
