@@ -1,6 +1,5 @@
 """The command line as a user meets it: exit codes, messages, files, signals."""
 
-import os
 import signal
 import subprocess
 import sys
