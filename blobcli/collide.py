@@ -43,15 +43,16 @@ the two blobs combine as √(μ_a μ_b).
 
 import math
 
+import numba
 import numpy as np
 
-from .jit import inline_kernel, kernel
+from .jit import inline_kernel, kernel, parallel_kernel
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 
 
 @kernel
-def _blob_bounds(pos, offsets, center, radius, box):
+def _blob_bounds(pos, offsets, center, radius, box, inv_len2):
     for b in range(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
@@ -59,6 +60,9 @@ def _blob_bounds(pos, offsets, center, radius, box):
         x1 = y1 = -math.inf
         for i in range(o, e):
             x, y = pos[i, 0], pos[i, 1]
+            j = i + 1 if i + 1 < e else o
+            len2 = (pos[j, 0] - x) ** 2 + (pos[j, 1] - y) ** 2
+            inv_len2[i] = 1.0 / len2 if len2 > 0.0 else 0.0  # 1 / |edge i|², for the narrow phase
             cx += x
             cy += y
             x0, y0, x1, y1 = min(x0, x), min(y0, y), max(x1, x), max(y1, y)
@@ -122,8 +126,9 @@ def _find_pairs(center, radius):
 
 def find_blob_pairs(state, model, params):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box)
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
     state.pairs = _find_pairs(state.center, state.radius)
+    state.partners = _partners(state.pairs, model.blob_count)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
 
 
@@ -171,58 +176,95 @@ def _separate_deep(pos, inv_mass, offsets, a, b, center, radius):
 
 
 @kernel
-def _detect(pos, offsets, blob_of, pairs, center, radius, blob_box, orient, inv_mass,
-            c_vertex, c_edge, c_t):
-    """Contacts (vertex, edge start, t) of every pair, both directions; deep pairs separated."""
-    count = 0
-    cap = c_vertex.shape[0]
+def _partners(pairs, blob_count):
+    """Each blob's partners as CSR lists (start, partner, pair index), in pair order."""
+    start = np.zeros(blob_count + 1, np.int64)
     for k in range(pairs.shape[0]):
+        start[pairs[k, 0] + 1] += 1
+        start[pairs[k, 1] + 1] += 1
+    for b in range(blob_count):
+        start[b + 1] += start[b]
+    fill = start[:-1].copy()
+    partner = np.empty(2 * pairs.shape[0], np.int64)
+    pair_of = np.empty(2 * pairs.shape[0], np.int64)
+    for k in range(pairs.shape[0]):
+        for a, b in ((pairs[k, 0], pairs[k, 1]), (pairs[k, 1], pairs[k, 0])):
+            partner[fill[a]] = b
+            pair_of[fill[a]] = k
+            fill[a] += 1
+    return start, partner, pair_of
+
+
+@parallel_kernel
+def _deep_pairs(pos, offsets, pairs, center, deep):
+    """deep[k]: either centre of pair k lies inside the other blob."""
+    for k in numba.prange(pairs.shape[0]):
         a, b = pairs[k, 0], pairs[k, 1]
-        if (_inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1])
-                or _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])):
-            _separate_deep(pos, inv_mass, offsets, a, b, center, radius)
-            continue
-        for A, B in ((a, b), (b, a)):
-            oa, ea, ob, eb = offsets[A], offsets[A + 1], offsets[B], offsets[B + 1]
+        deep[k] = (_inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1])
+                   or _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1]))
+
+
+@parallel_kernel
+def _detect(pos, offsets, orient, center, radius, inv_len2, start, partner, pair_of, deep, c_edge, c_t, c_depth2):
+    """For every vertex: the edge it must leave (c_edge = -1: none), from its deepest contact.
+
+    Parallel over blobs; each blob writes only its own vertices' slots, and keeps the
+    deepest of its contacts, so the result does not depend on the number of threads."""
+    for A in numba.prange(offsets.shape[0] - 1):
+        oa, ea = offsets[A], offsets[A + 1]
+        for i in range(oa, ea):
+            c_edge[i] = -1
+        for k in range(start[A], start[A + 1]):
+            if deep[pair_of[k]]:
+                continue
+            B = partner[k]
+            ob, eb = offsets[B], offsets[B + 1]
+            cx, cy, r2 = center[B, 0], center[B, 1], radius[B] * radius[B]
             for i in range(oa, ea):
                 x, y = pos[i, 0], pos[i, 1]
-                if x < blob_box[B, 0] or x > blob_box[B, 2] or y < blob_box[B, 1] or y > blob_box[B, 3]:
-                    continue
-                if not _inside(pos, ob, eb, x, y):
+                if (x - cx) ** 2 + (y - cy) ** 2 > r2:  # outside B's bounding circle
                     continue
                 # p's outward normal, from its neighbours (sign from A's winding).
                 ip = i - 1 if i > oa else ea - 1
                 inx = i + 1 if i + 1 < ea else oa
                 vnx = orient[A] * (pos[inx, 1] - pos[ip, 1])
                 vny = -orient[A] * (pos[inx, 0] - pos[ip, 0])
+                # One pass over B's edges: crossing parity, and the nearest edge (any / opposing).
+                inside = False
                 best_opp = best_any = math.inf
                 e_opp = e_any = -1
                 t_opp = t_any = 0.0
-                for j in range(ob, eb):
-                    jn = j + 1 if j + 1 < eb else ob
-                    ex, ey = pos[jn, 0] - pos[j, 0], pos[jn, 1] - pos[j, 1]
-                    len2 = ex * ex + ey * ey
-                    if len2 == 0.0:
-                        continue
-                    t = min(max(((x - pos[j, 0]) * ex + (y - pos[j, 1]) * ey) / len2, 0.0), 1.0)
-                    d2 = (pos[j, 0] + t * ex - x) ** 2 + (pos[j, 1] + t * ey - y) ** 2
+                j = eb - 1
+                for jn in range(ob, eb):
+                    ax, ay = pos[j, 0], pos[j, 1]
+                    ex, ey = pos[jn, 0] - ax, pos[jn, 1] - ay
+                    rx, ry = x - ax, y - ay
+                    # crossing number, without dividing: the ray x' > x crosses this edge
+                    if (ay > y) != (ay + ey > y) and (rx * ey - ry * ex) * ey < 0.0:
+                        inside = not inside
+                    t = min(max((rx * ex + ry * ey) * inv_len2[j], 0.0), 1.0)
+                    d2 = (t * ex - rx) ** 2 + (t * ey - ry) ** 2
                     if d2 < best_any:
                         best_any, e_any, t_any = d2, j, t
-                    if orient[B] * (ey * vnx - ex * vny) < 0.0 and d2 < best_opp:  # edge normal · p normal < 0
+                    if d2 < best_opp and orient[B] * (ey * vnx - ex * vny) < 0.0:  # normals oppose
                         best_opp, e_opp, t_opp = d2, j, t
+                    j = jn
+                if not inside or e_any < 0:
+                    continue
                 if e_opp < 0:
-                    e_opp, t_opp = e_any, t_any
-                if e_opp >= 0 and count < cap:
-                    c_vertex[count], c_edge[count], c_t[count] = i, e_opp, t_opp
-                    count += 1
-    return count
+                    e_opp, t_opp, best_opp = e_any, t_any, best_any
+                # keep the deepest contact of this vertex (its depth: distance to the edge)
+                if c_edge[i] < 0 or best_opp > c_depth2[i]:
+                    c_edge[i], c_t[i], c_depth2[i] = e_opp, t_opp, best_opp
 
 
 @kernel
-def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_vertex, c_edge, c_t, count, contact_depth,
+def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
              center, radius, up_x, up_y):
-    for k in range(count):
-        p, e0, t = c_vertex[k], c_edge[k], c_t[k]
+    for p in range(pos.shape[0]):  # Gauss-Seidel, in vertex order
+        e0, t = c_edge[p], c_t[p]
+        if e0 < 0:
+            continue
         blob = blob_of[e0]
         a = blob_of[p]
         wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
@@ -285,10 +327,15 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 def collide_blobs(state, model, params):
     """Narrow phase, then resolution with friction, for this iteration's blob pairs."""
-    count = _detect(state.pos, model.offsets, model.blob_of, state.pairs, state.center, state.radius,
-                    state.blob_box, model.orient, model.inv_mass, state.c_vertex, state.c_edge, state.c_t)
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
+    deep = np.empty(len(state.pairs), dtype=np.bool_)
+    _deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
+    for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
+        _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
+                       state.center, state.radius)
+    _detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.inv_len2, *state.partners, deep,
+            state.c_edge, state.c_t, state.c_depth2)
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
     _resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
-             state.c_vertex, state.c_edge, state.c_t, count, state.blob_contact_depth, state.center, state.radius,
-             up[0], up[1])
+             state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1])

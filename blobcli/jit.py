@@ -11,3 +11,6 @@ import numba
 
 kernel = numba.njit(cache=True, error_model="numpy", nogil=True)
 inline_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
+# Loops over independent blobs (each writes only its own vertices) may run on all cores:
+# their results do not depend on the number of threads.
+parallel_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, parallel=True)

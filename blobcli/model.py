@@ -89,10 +89,12 @@ class State:
     center: np.ndarray  # (B, 2) m, vertex-average centres
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
     blob_box: np.ndarray  # (B, 4) xmin, ymin, xmax, ymax
+    inv_len2: np.ndarray  # (N,) 1/m², 1 / |edge i|² at the current positions
     pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
-    c_vertex: np.ndarray  # (2N,) int64, contact k: vertex ...
-    c_edge: np.ndarray  # (2N,) int64, ... pushed out of the edge starting at this vertex ...
-    c_t: np.ndarray  # (2N,) ... at this barycentric position along it
+    partners: tuple  # each blob's partners, CSR: (start (B+1,), partner (2P,), pair index (2P,))
+    c_edge: np.ndarray  # (N,) int64, vertex i's contact: the edge (by its first vertex) it must leave, or -1 ...
+    c_t: np.ndarray  # (N,) ... the barycentric position on it ...
+    c_depth2: np.ndarray  # (N,) m², ... and the squared depth (the deepest contact wins)
     blob_contact_depth: np.ndarray  # (N,) m, a vertex's total push-out by blobs this substep
 
 
@@ -160,9 +162,9 @@ def build(scene: Scene) -> tuple[Model, State]:
     state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
                   contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
                   contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
-                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), blob_box=np.zeros((len(counts), 4)),
-                  pairs=np.zeros((0, 2), dtype=np.int64), c_vertex=np.zeros(2 * n, dtype=np.int64),
-                  c_edge=np.zeros(2 * n, dtype=np.int64), c_t=np.zeros(2 * n), blob_contact_depth=np.zeros(n))
+                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), blob_box=np.zeros((len(counts), 4)), inv_len2=np.zeros(n),
+                  pairs=np.zeros((0, 2), dtype=np.int64), partners=(), c_edge=np.zeros(n, dtype=np.int64),
+                  c_t=np.zeros(n), c_depth2=np.zeros(n), blob_contact_depth=np.zeros(n))
     return model, state
 
 
