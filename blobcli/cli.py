@@ -21,6 +21,16 @@ def _positive_int(text):
     return v
 
 
+def _nonnegative_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number (got {text!r})") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
+    return v
+
+
 def _positive_float(text):
     try:
         v = float(text)
@@ -45,10 +55,24 @@ def parser() -> argparse.ArgumentParser:
     length.add_argument("--steps", type=_positive_int, metavar="N", help="number of steps (overrides the scene)")
     length.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (overrides the scene)")
     run.add_argument("--method", choices=METHODS, help="area method (overrides the scene)")
+    run.add_argument("--resume", metavar="PARTIAL.h5",
+                     help="continue an interrupted run of this scene from its last frame (output defaults to that file)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
     check = sub.add_parser("check", help="validate scenes and print them with every default filled in")
     check.add_argument("scenes", nargs="+", metavar="SCENE")
+
+    compare = sub.add_parser("compare", help="compare two trajectory files frame by frame",
+                             description="Exit 0: the same within tolerance; 1: different; 2: cannot compare.")
+    compare.add_argument("a", metavar="A.h5")
+    compare.add_argument("b", metavar="B.h5")
+    compare.add_argument("--atol", type=_nonnegative_float, default=0.0, metavar="X", help="absolute tolerance, m")
+    compare.add_argument("--rtol", type=_nonnegative_float, default=0.0, metavar="Y", help="relative tolerance")
+    horizon = compare.add_mutually_exclusive_group()
+    horizon.add_argument("--frames", type=_positive_int, metavar="K", help="compare only the first K frames")
+    horizon.add_argument("--until", type=_nonnegative_float, metavar="T", help="compare only frames with time <= T s")
+    compare.add_argument("--json", action="store_true", help="print the report as JSON")
+    compare.add_argument("--allow-incomplete", action="store_true", help="compare files of interrupted runs too")
     return p
 
 
@@ -65,8 +89,16 @@ def cmd_run(args) -> int:
     except SceneError as e:
         return _fail(e.problems)
     scene = with_overrides(scene, steps=args.steps, duration=args.duration, method=args.method)
+    output = args.output
+    if args.resume:
+        from .h5md import resume_problems
+        from .model import build_params
+        problems = resume_problems(args.resume, scene, build_params(scene))
+        if problems:
+            return _fail(problems)
+        output = output or args.resume
     from .run import simulate
-    result = simulate(scene, args.output, progress=not args.quiet and sys.stderr.isatty())
+    result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
     if result.message:
         print(f"blobsim: {result.message}", file=sys.stderr)
     print(result.summary())
@@ -84,7 +116,20 @@ def cmd_check(args) -> int:
     return _fail(problems) if problems else 0
 
 
-COMMANDS = {"run": cmd_run, "check": cmd_check}
+def cmd_compare(args) -> int:
+    import json
+
+    from .compare import CannotCompare, compare_files
+    try:
+        report = compare_files(args.a, args.b, atol=args.atol, rtol=args.rtol, frames=args.frames, until=args.until,
+                               allow_incomplete=args.allow_incomplete)
+    except CannotCompare as e:
+        return _fail([f"blobsim compare: {e}"])
+    print(json.dumps(report.json(), indent=2) if args.json else report.text())
+    return 0 if report.same else 1
+
+
+COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare}
 
 
 def main(argv=None) -> int:

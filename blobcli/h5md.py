@@ -14,7 +14,8 @@
         blob_offsets [B + 1] int64, blob_names [B] str, target_area [B] (m²), mass [B] (kg),
         scene (str: the scene's TOML), attrs: dt, substeps, iterations, method, damping,
         gravity, steps, every, source, and the versions a reproduction needs
-    /restart/              the last recorded frame, exactly: position [N, 2], velocity [N, 2], attr step
+    /restart/              the exact state at the last recorded frame, for --resume:
+                           position [N, 2], velocity [N, 2], impact_speed [B], attr step
 
 Frames are buffered and written in blocks of about 1 MiB (and at least every
 FLUSH_SECONDS), into `<path>.partial`; `close` marks the file and renames it to `<path>`,
@@ -52,11 +53,16 @@ def _series(group, name, shape, dtype=np.float64, unit=None, chunk=1):
 
 
 def versions() -> dict:
+    """Versions and settings a bit-for-bit reproduction needs."""
+    import llvmlite
     import numba
     from . import __version__
+    env = {k: os.environ.get(k, "") for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                               "PYTHONHASHSEED")}
     return {"blobsim_version": __version__, "python": sys.version.split()[0], "numpy": np.__version__,
-            "numba": numba.__version__, "h5py": h5py.__version__, "hdf5": h5py.version.hdf5_version,
-            "platform": platform.platform(), "machine": platform.machine()}
+            "numba": numba.__version__, "llvmlite": llvmlite.__version__, "h5py": h5py.__version__,
+            "hdf5": h5py.version.hdf5_version, "platform": platform.platform(), "machine": platform.machine(),
+            "numba_threads": numba.get_num_threads(), **{f"env_{k}": v for k, v in env.items()}}
 
 
 class TrajectoryWriter:
@@ -69,7 +75,8 @@ class TrajectoryWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.dt = params.dt
         n, b = model.vertex_count, model.blob_count
-        self.block = max(1, min(4096, BLOCK_BYTES // (16 * n)))
+        frames = params.steps // params.every + 1  # expected; resumed or extended runs may add more
+        self.block = max(1, min(4096, BLOCK_BYTES // (16 * n), frames))
         f = self.file = h5py.File(self.partial, "w")
         f.attrs["complete"] = False
         f.attrs["blobsim_format"] = FORMAT_VERSION
@@ -105,9 +112,10 @@ class TrajectoryWriter:
         self._last_flush = time.monotonic()
         self.frames = 0
 
-    def append(self, step: int, pos, vel, area, kinetic):
-        """Buffer one frame (copied); write the block when it is full or old."""
-        self._buffer.append((step, pos.copy(), vel.copy(), area * self._sign, kinetic.copy()))
+    def append(self, step: int, state, area, kinetic):
+        """Buffer one frame of `state` (copied); write the block when it is full or old."""
+        self._buffer.append((step, state.pos.copy(), state.vel.copy(), state.impact_speed.copy(),
+                             area * self._sign, kinetic.copy()))
         if len(self._buffer) >= self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
 
@@ -116,17 +124,17 @@ class TrajectoryWriter:
             return
         steps = np.array([s for s, *_ in self._buffer], dtype=np.int64)
         columns = [(self.position, np.stack([x[1] for x in self._buffer])),
-                   (self.area, np.stack([x[3] for x in self._buffer])),
-                   (self.kinetic, np.stack([x[4] for x in self._buffer]))]
+                   (self.area, np.stack([x[4] for x in self._buffer])),
+                   (self.kinetic, np.stack([x[5] for x in self._buffer]))]
         start, stop = self.frames, self.frames + len(steps)
         for group, values in columns:
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        step, pos, vel = self._buffer[-1][:3]
+        step, pos, vel, impact = self._buffer[-1][:4]
         restart = self.file.require_group("restart")
-        for name, data in (("position", pos), ("velocity", vel)):
+        for name, data in (("position", pos), ("velocity", vel), ("impact_speed", impact)):
             if name in restart:
                 restart[name][...] = data
             else:
@@ -137,6 +145,32 @@ class TrajectoryWriter:
         self.file.flush()
         self._last_flush = time.monotonic()
 
+    def adopt(self, path, state) -> int:
+        """Resume: copy the frames of an interrupted run's file and load its last state.
+
+        Returns the step to continue after. The file must come from the same scene and
+        settings (checked by the caller with `resume_problems`)."""
+        with h5py.File(path, "r") as f:
+            restart = f["restart"]
+            step = int(restart.attrs["step"])
+            pos = f["particles/blobs/position"]
+            keep = int(np.searchsorted(pos["step"][...], step, side="right"))
+            self.flush()
+            for start in range(0, keep, self.block):
+                stop = min(start + self.block, keep)
+                for group, source in ((self.position, pos), (self.area, f["observables/area"]),
+                                      (self.kinetic, f["observables/kinetic_energy"])):
+                    for name in ("value", "step", "time"):
+                        ds = group[name]
+                        ds.resize(self.frames + stop - start, axis=0)
+                        ds[self.frames:] = source[name][start:stop]
+                self.frames += stop - start
+            state.pos[...] = restart["position"][...]
+            state.vel[...] = restart["velocity"][...]
+            state.impact_speed[...] = restart["impact_speed"][...]
+            self.worst_area_error = _worst_area_error(f["observables/area/value"][1:keep], f["parameters/target_area"][...])
+        return step
+
     def close(self, complete: bool, stopped: str = ""):
         """Write what is buffered, mark the file and move it into place at `path`."""
         self.flush()
@@ -144,6 +178,35 @@ class TrajectoryWriter:
         self.file.attrs["stopped"] = stopped
         self.file.close()
         os.replace(self.partial, self.path)
+
+
+def _worst_area_error(area, target) -> float:
+    """max |A - A_target| / A_target over frames and blobs (0 for no frames)."""
+    return float(np.max(np.abs(area - target) / target, initial=0.0))
+
+
+def resume_problems(path, scene, params) -> list[str]:
+    """Why `path` cannot be resumed with this scene and these settings (empty: it can)."""
+    try:
+        f = h5py.File(path, "r")
+    except FileNotFoundError:
+        return [f"{path}: no such file"]
+    except OSError as e:
+        return [f"{path}: not a readable HDF5 file ({e})"]
+    with f:
+        if "restart" not in f or "parameters" not in f:
+            return [f"{path}: not a blobsim trajectory with a restart state"]
+        p = f["parameters"]
+        problems = []
+        if p["scene"][()].decode() != scene.text:
+            problems.append(f"{path}: was run from a different scene text than {scene.source}")
+        for key in ("dt", "substeps", "iterations", "method", "every"):
+            was, now = p.attrs[key], getattr(params, key)
+            if was != now:
+                problems.append(f"{path}: was run with {key} = {was}, not {now}")
+        if bool(f.attrs["complete"]) and int(f["restart"].attrs["step"]) >= params.steps:
+            problems.append(f"{path}: run is complete; nothing to resume")
+        return problems
 
 
 @dataclass

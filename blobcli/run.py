@@ -61,8 +61,12 @@ class _StopFlag:
             signal.signal(s, handler)
 
 
-def simulate(scene: Scene, path=None, progress: bool = False) -> RunResult:
-    """Run `scene` and write its trajectory to `path` (default: the scene's output path)."""
+def simulate(scene: Scene, path=None, progress: bool = False, resume=None) -> RunResult:
+    """Run `scene` and write its trajectory to `path` (default: the scene's output path).
+
+    With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new
+    file starts with that run's frames and continues from its last state: the result is
+    bit for bit the trajectory of a run that was never interrupted."""
     path = Path(path) if path is not None else scene.output_path
     model, state = build(scene)
     params = build_params(scene)
@@ -75,7 +79,7 @@ def simulate(scene: Scene, path=None, progress: bool = False) -> RunResult:
         area, kinetic = blob_measures(state, model)
         if n > 0:  # frame 0 is the shape as given: at rest area, not at pressure × rest area
             worst = max(worst, float(np.max(np.abs(np.abs(area) - target) / target)))
-        writer.append(n, state.pos, state.vel, area, kinetic)
+        writer.append(n, state, area, kinetic)
 
     bar = None
     if progress:
@@ -84,9 +88,15 @@ def simulate(scene: Scene, path=None, progress: bool = False) -> RunResult:
     status, message, done = "complete", "", 0
     start = time.perf_counter()
     try:
-        record(0)
+        if resume is not None:
+            done = writer.adopt(resume, state)
+            worst = writer.worst_area_error
+        else:
+            record(0)
+        if bar is not None:
+            bar.update(done)
         with _StopFlag() as stop:
-            for n in range(1, params.steps + 1):
+            for n in range(done + 1, params.steps + 1):
                 step(state, model, params)
                 bad = first_runaway(state)
                 if bad >= 0:

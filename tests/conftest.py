@@ -17,6 +17,7 @@ BLOB_PENETRATION = 2e-3  # m: deepest vertex inside another blob in a settled pi
 STACK_FLICKER = 1e-2  # m/s: regression guard on a settled stack's centre speeds (measured peak 8.7e-3;
 #   not rest: contact flicker under load, see README "Known limits")
 LOADED_AREA = 0.03  # relative area error of a light blob under 150× heavier ones, after impact
+GOLDEN_ATOL = 1e-9  # m: fresh runs vs the stored golden trajectories (same versions: bit-identical)
 STATIC_PENETRATION = 1e-9  # m: depth of a vertex inside a static collider after a step
 
 
