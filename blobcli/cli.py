@@ -55,12 +55,21 @@ def parser() -> argparse.ArgumentParser:
     length.add_argument("--steps", type=_positive_int, metavar="N", help="number of steps (overrides the scene)")
     length.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (overrides the scene)")
     run.add_argument("--method", choices=METHODS, help="area method (overrides the scene)")
+    run.add_argument("--rerun", nargs="?", const="", metavar="OUT.rrd",
+                     help="also write a rerun recording (default: beside the trajectory, as .rrd)")
     run.add_argument("--resume", metavar="PARTIAL.h5",
                      help="continue an interrupted run of this scene from its last frame (output defaults to that file)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
     check = sub.add_parser("check", help="validate scenes and print them with every default filled in")
     check.add_argument("scenes", nargs="+", metavar="SCENE")
+
+    replay = sub.add_parser("replay", help="make the rerun recording of an existing trajectory file")
+    replay.add_argument("trajectory", metavar="TRAJ.h5")
+    replay.add_argument("-o", "--output", metavar="OUT.rrd", help="recording file (default: beside it, as .rrd)")
+
+    view = sub.add_parser("view", help="open a recording (.rrd, or a .h5 converted first) in the rerun viewer")
+    view.add_argument("file", metavar="FILE")
 
     compare = sub.add_parser("compare", help="compare two trajectory files frame by frame",
                              description="Exit 0: the same within tolerance; 1: different; 2: cannot compare.")
@@ -97,11 +106,22 @@ def cmd_run(args) -> int:
         if problems:
             return _fail(problems)
         output = output or args.resume
+    from pathlib import Path
+    rerun = args.rerun if args.rerun is not None else scene.output.rerun
+    if rerun == "":
+        rerun = str(Path(output or scene.output_path).with_suffix(".rrd"))
     from .run import simulate
     result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
     if result.message:
         print(f"blobsim: {result.message}", file=sys.stderr)
     print(result.summary())
+    if rerun:
+        # Written from the finished file, not during the run: rerun's encoder threads slowed
+        # the numba kernels 7× on two cores. An interrupted run's file holds every frame up
+        # to the stop, so its recording does too.
+        from .recording import replay
+        frames = replay(result.path, rerun)
+        print(f"blobsim: recorded {frames} frames into {rerun}")
     return result.exit_code
 
 
@@ -114,6 +134,57 @@ def cmd_check(args) -> int:
         except SceneError as e:
             problems += e.problems
     return _fail(problems) if problems else 0
+
+
+def _trajectory_problem(path) -> str | None:
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            if "particles/blobs/position" not in f or "parameters/scene" not in f:
+                return f"{path}: not a blobsim trajectory"
+    except FileNotFoundError:
+        return f"{path}: no such file"
+    except OSError as e:
+        return f"{path}: not a readable HDF5 file ({e})"
+    return None
+
+
+def cmd_replay(args) -> int:
+    from pathlib import Path
+    problem = _trajectory_problem(args.trajectory)
+    if problem:
+        return _fail([problem])
+    out = args.output or str(Path(args.trajectory).with_suffix(".rrd"))
+    from .recording import replay
+    frames = replay(args.trajectory, out)
+    print(f"blobsim: recorded {frames} frames of {args.trajectory} into {out}")
+    return 0
+
+
+def cmd_view(args) -> int:
+    import os
+    import shutil
+    import subprocess
+    from pathlib import Path
+    path = Path(args.file)
+    if path.suffix == ".h5":
+        problem = _trajectory_problem(path)
+        if problem:
+            return _fail([problem])
+        from .recording import replay
+        rrd = path.with_suffix(".rrd")
+        replay(path, rrd)
+        path = rrd
+    elif not path.exists():
+        return _fail([f"{path}: no such file"])
+    viewer = shutil.which("rerun")
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or viewer is None:
+        print(f"blobsim: no display here; the recording is {path}. Open it on a machine with a display "
+              f"(pip install rerun-sdk) with: rerun {path}", file=sys.stderr)
+        return 0
+    subprocess.Popen([viewer, str(path)])
+    print(f"blobsim: opened {path} in the rerun viewer")
+    return 0
 
 
 def cmd_compare(args) -> int:
@@ -129,7 +200,7 @@ def cmd_compare(args) -> int:
     return 0 if report.same else 1
 
 
-COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare}
+COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view}
 
 
 def main(argv=None) -> int:

@@ -92,6 +92,7 @@ class OutputSettings:
     """`[output]`: where the trajectory goes."""
     path: str | None = key(None, "", "HDF5 file; default outputs/<name>.h5", "str")
     every: int = key(1, "steps", "record every k-th step (frame 0 is the initial state)", "int", at_least(1))
+    rerun: str | None = key(None, "", "also write a rerun recording (.rrd) here; default: none", "str")
 
 
 @dataclass(frozen=True)
