@@ -71,6 +71,10 @@ def parser() -> argparse.ArgumentParser:
     view = sub.add_parser("view", help="open a recording (.rrd, or a .h5 converted first) in the rerun viewer")
     view.add_argument("file", metavar="FILE")
 
+    bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
+    bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
+    bench.add_argument("--json", metavar="OUT", help="also write the figures as JSON")
+
     compare = sub.add_parser("compare", help="compare two trajectory files frame by frame",
                              description="Exit 0: the same within tolerance; 1: different; 2: cannot compare.")
     compare.add_argument("a", metavar="A.h5")
@@ -187,6 +191,11 @@ def cmd_view(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from .bench import main as bench_main
+    return bench_main(args.quick, args.json)
+
+
 def cmd_compare(args) -> int:
     import json
 
@@ -200,7 +209,8 @@ def cmd_compare(args) -> int:
     return 0 if report.same else 1
 
 
-COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view}
+COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
+            "bench": cmd_bench}
 
 
 def main(argv=None) -> int:

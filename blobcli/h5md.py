@@ -17,7 +17,7 @@
     /restart/              the exact state at the last recorded frame, for --resume:
                            position [N, 2], velocity [N, 2], impact_speed [B], attr step
 
-Frames are buffered and written in blocks of about 1 MiB (and at least every
+Frames are buffered and written in blocks of about 4 MiB (and at least every
 FLUSH_SECONDS), into `<path>.partial`; `close` marks the file and renames it to `<path>`,
 so `<path>` is never a half-written file.
 """
@@ -35,7 +35,7 @@ import h5py
 import numpy as np
 
 FORMAT_VERSION = 1
-BLOCK_BYTES = 1 << 20  # frames per block: about this many bytes of positions
+BLOCK_BYTES = 4 << 20  # frames per block: about this many bytes of positions
 FLUSH_SECONDS = 10.0  # and no block waits longer than this
 
 
@@ -108,40 +108,52 @@ class TrajectoryWriter:
         for k, v in attrs.items():
             p.attrs[k] = v
         self._sign = np.sign(model.rest_area)
-        self._buffer = []
+        # One block of frames, filled in place; and the state of the latest frame, for /restart.
+        self._steps = np.empty(self.block, dtype=np.int64)
+        self._pos = np.empty((self.block, n, 2))
+        self._area = np.empty((self.block, b))
+        self._kinetic = np.empty((self.block, b))
+        self._last_vel = np.empty((n, 2))
+        self._last_impact = np.empty(b)
+        self._count = 0
         self._last_flush = time.monotonic()
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
         """Buffer one frame of `state` (copied); write the block when it is full or old."""
-        self._buffer.append((step, state.pos.copy(), state.vel.copy(), state.impact_speed.copy(),
-                             area * self._sign, kinetic.copy()))
-        if len(self._buffer) >= self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
+        k = self._count
+        self._steps[k] = step
+        self._pos[k] = state.pos
+        np.multiply(area, self._sign, out=self._area[k])
+        self._kinetic[k] = kinetic
+        self._last_vel[...] = state.vel
+        self._last_impact[...] = state.impact_speed
+        self._count = k + 1
+        if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
 
     def flush(self):
-        if not self._buffer:
+        k = self._count
+        if k == 0:
             return
-        steps = np.array([s for s, *_ in self._buffer], dtype=np.int64)
-        columns = [(self.position, np.stack([x[1] for x in self._buffer])),
-                   (self.area, np.stack([x[4] for x in self._buffer])),
-                   (self.kinetic, np.stack([x[5] for x in self._buffer]))]
-        start, stop = self.frames, self.frames + len(steps)
-        for group, values in columns:
+        steps = self._steps[:k]
+        start, stop = self.frames, self.frames + k
+        for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
+                              (self.kinetic, self._kinetic[:k])):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        step, pos, vel, impact = self._buffer[-1][:4]
         restart = self.file.require_group("restart")
-        for name, data in (("position", pos), ("velocity", vel), ("impact_speed", impact)):
+        for name, data in (("position", self._pos[k - 1]), ("velocity", self._last_vel),
+                           ("impact_speed", self._last_impact)):
             if name in restart:
                 restart[name][...] = data
             else:
                 restart.create_dataset(name, data=data)
-        restart.attrs["step"] = step
+        restart.attrs["step"] = steps[-1]
         self.frames = stop
-        self._buffer.clear()
+        self._count = 0
         self.file.flush()
         self._last_flush = time.monotonic()
 

@@ -1,0 +1,305 @@
+"""`blobsim bench`: how fast blobsim is on this machine, and beside the pymunk peer.
+
+Every figure is a median of several repetitions, measured in one process, so that ratios
+compare like with like on a noisy machine. Nothing here is a test: targets are printed
+beside the figures, never asserted.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+VERTICES = 32
+RADIUS = 0.2  # m
+TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
+    "core_ns_per_vertex_substep_1000": 20.0,
+    "piled_ms_per_substep_1000": 4.0,
+    "peer_speedup_piled": 10.0,
+    "one_blob_1000_steps_warm_s": 1.0,
+    "scaling_1000_over_100": 11.0,
+    "record_every_step_overhead": 0.10,
+}
+
+
+def scene_text(blobs: int, layout: str) -> str:
+    """Blobs of 32 vertices: "apart" in a row on a floor, or "piled" in a box (a grid falling in)."""
+    if layout == "apart":
+        return f"""
+[[blob]]
+name = "b"
+center = [0.0, {RADIUS + 0.001}]
+radius = {RADIUS}
+vertices = {VERTICES}
+grid = [{blobs}, 1]
+spacing = [{4 * RADIUS}, 0.0]
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+"""
+    # cols × rows = blobs exactly, the box about 1.6 times as wide as the pile is deep
+    cols = min((d for d in range(1, blobs + 1) if blobs % d == 0), key=lambda d: abs(d - math.sqrt(1.6 * blobs)))
+    rows = blobs // cols
+    width = cols * 2 * RADIUS
+    return f"""
+[[blob]]
+name = "b"
+center = [{-width / 2 + RADIUS}, {RADIUS + 0.001}]
+radius = {RADIUS}
+vertices = {VERTICES}
+grid = [{cols}, {rows}]
+spacing = [{2 * RADIUS}, {2.1 * RADIUS}]
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+[[static]]
+kind = "box"
+center = [{-width / 2 - 0.1}, {rows * RADIUS * 2.2}]
+size = [0.2, {rows * RADIUS * 4.4 + 1.0}]
+[[static]]
+kind = "box"
+center = [{width / 2 + 0.1}, {rows * RADIUS * 2.2}]
+size = [0.2, {rows * RADIUS * 4.4 + 1.0}]
+"""
+
+
+def _median_time(fn, repeats: int, inner: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            fn()
+        times.append((time.perf_counter() - t0) / inner)
+    return statistics.median(times)
+
+
+def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict:
+    from .model import build, build_params
+    from .pipeline import step
+    from .scene import parse_scene
+    scene = parse_scene(scene_text(blobs, layout), f"bench-{layout}-{blobs}")
+    model, state = build(scene)
+    params = build_params(scene)
+    for _ in range(settle_steps):  # piled: let them fall into a pile first
+        step(state, model, params)
+    inner = max(1, min(50, 20000 // (blobs * VERTICES // 32 + 1)))
+    sec = _median_time(lambda: step(state, model, params), repeats, inner)
+    n = model.vertex_count
+    return {"blobs": blobs, "layout": layout, "vertices": n, "ms_per_step": sec * 1e3,
+            "ms_per_substep": sec * 1e3 / params.substeps,
+            "vertex_substeps_per_s": n * params.substeps / sec, "ns_per_vertex_substep": sec * 1e9 / (n * params.substeps)}
+
+
+def measure_core(blobs: int, repeats: int) -> dict:
+    """The core substep alone: predict, iterations × (perimeter, area, floor), velocity update."""
+    from .area import AREA_METHODS
+    from .integrate import predict, update_velocities
+    from .model import build, build_params
+    from .perimeter import solve_perimeter
+    from .scene import parse_scene
+    from .statics import collide_static
+    scene = parse_scene(scene_text(blobs, "apart"), "bench-core")
+    model, state = build(scene)
+    params = build_params(scene)
+    h = params.dt / params.substeps
+    floor = model.statics[0]
+
+    def substep():
+        predict(state, model, params, h)
+        for _ in range(params.iterations):
+            solve_perimeter(state, model, params, h)
+            AREA_METHODS["kot"](state, model, params, h)
+            collide_static(state, model, floor)
+        update_velocities(state, model, params, h)
+    substep()
+    sec = _median_time(substep, repeats, 50)
+    return {"blobs": blobs, "ns_per_vertex_substep": sec * 1e9 / model.vertex_count, "us_per_substep": sec * 1e6}
+
+
+def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:
+    """pymunk (Chipmunk2D): each blob a ring of 32 small circles joined by damped springs,
+    with spokes to a centre body; same counts, layouts, dt and substeps as blobsim."""
+    try:
+        import pymunk
+    except ImportError:
+        return None
+    space = pymunk.Space()
+    space.gravity = (0.0, -9.81)
+    space.iterations = 10
+    floor = pymunk.Segment(space.static_body, (-1e4, 0.0), (1e4, 0.0), 0.01)
+    floor.friction = 0.5
+    space.add(floor)
+    from .model import build
+    from .scene import parse_scene
+    scene = parse_scene(scene_text(blobs, layout), "bench-peer")
+    for s in scene.statics:
+        if s.kind == "box":
+            from .model import static_outline
+            wall = pymunk.Poly(space.static_body, [tuple(p) for p in static_outline(s)])
+            wall.friction = 0.5
+            space.add(wall)
+    model, state = build(scene)
+    ring_mass, edge = 1.0 / VERTICES, 2 * math.pi * RADIUS / VERTICES
+    stiffness, damping = 2000.0, 5.0
+    for b in range(model.blob_count):
+        ring = state.pos[model.offsets[b]:model.offsets[b + 1]]
+        centre = pymunk.Body(0.2, pymunk.moment_for_circle(0.2, 0, RADIUS / 4))
+        centre.position = tuple(ring.mean(axis=0))
+        group = pymunk.ShapeFilter(group=b + 1)  # a blob's own parts do not collide
+        core = pymunk.Circle(centre, RADIUS / 4)
+        core.filter = group
+        space.add(centre, core)
+        bodies = []
+        for x, y in ring:
+            body = pymunk.Body(ring_mass, pymunk.moment_for_circle(ring_mass, 0, edge / 2))
+            body.position = (x, y)
+            shape = pymunk.Circle(body, edge / 2)
+            shape.friction, shape.filter = 0.5, group
+            space.add(body, shape)
+            bodies.append(body)
+        for i, body in enumerate(bodies):
+            nxt = bodies[(i + 1) % len(bodies)]
+            space.add(pymunk.DampedSpring(body, nxt, (0, 0), (0, 0), edge, stiffness, damping),
+                      pymunk.DampedSpring(body, centre, (0, 0), (0, 0), RADIUS, stiffness, damping))
+    dt, substeps = scene.settings.dt, scene.settings.substeps
+
+    def step():
+        for _ in range(substeps):
+            space.step(dt / substeps)
+    for _ in range(settle_steps):
+        step()
+    inner = max(1, min(20, 2000 // blobs))
+    sec = _median_time(step, repeats, inner)
+    return {"blobs": blobs, "layout": layout, "ms_per_step": sec * 1e3}
+
+
+def _run_seconds(args, env) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "blobcli", *args], check=True, env=env, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def measure_startup(repeats: int) -> dict:
+    """Wall time of `blobsim run` on a one-blob, 1,000-step scene: cold and warm numba cache."""
+    with tempfile.TemporaryDirectory() as d:
+        scene = Path(d) / "one.toml"
+        scene.write_text("[scene]\nsteps = 1000\n" + scene_text(1, "apart"))
+        out = str(Path(d) / "one.h5")
+        cold = []
+        for k in range(max(1, repeats // 2)):
+            env = {**os.environ, "NUMBA_CACHE_DIR": str(Path(d) / f"cache{k}")}
+            cold.append(_run_seconds(["run", str(scene), "-o", out, "-q"], env))
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(Path(d) / "cache0")}
+        warm = [_run_seconds(["run", str(scene), "-o", out, "-q"], env) for _ in range(repeats)]
+    return {"cold_s": statistics.median(cold), "warm_s": statistics.median(warm)}
+
+
+def measure_recording(blobs: int, steps: int, repeats: int) -> dict:
+    """Run time with every step recorded versus every 10th (the writer's share of a run)."""
+    from dataclasses import replace
+
+    from .run import simulate
+    from .scene import parse_scene
+    base = parse_scene(f"[scene]\nsteps = {steps}\n" + scene_text(blobs, "apart"), "bench-record")
+    out = {}
+    with tempfile.TemporaryDirectory() as d:
+        for every in (1, 10):
+            scene = replace(base, output=replace(base.output, every=every))
+            simulate(scene, Path(d) / "warm.h5")
+            out[every] = statistics.median(simulate(scene, Path(d) / f"e{every}.h5").wall_time for _ in range(repeats))
+    return {"blobs": blobs, "steps": steps, "every_1_s": out[1], "every_10_s": out[10],
+            "overhead": out[1] / out[10] - 1.0}
+
+
+def measure_memory(blobs: int, steps: int) -> dict:
+    """Peak resident memory (MiB) of `blobsim run` for a run and one 4× as long."""
+    peaks = {}
+    with tempfile.TemporaryDirectory() as d:
+        scene = Path(d) / "m.toml"
+        for n in (steps, 4 * steps):
+            scene.write_text(f"[scene]\nsteps = {n}\n" + scene_text(blobs, "apart"))
+            code = ("import resource, sys; from blobcli.cli import main; main(sys.argv[1:]); "
+                    "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
+            r = subprocess.run([sys.executable, "-c", code, "run", str(scene), "-o", str(Path(d) / "m.h5"), "-q"],
+                               check=True, capture_output=True, text=True)
+            peaks[n] = int(r.stdout.split()[-1]) / 1024
+    return {"blobs": blobs, "steps": steps, "peak_mib": peaks[steps], "peak_mib_4x_steps": peaks[4 * steps]}
+
+
+def run_bench(quick: bool = False) -> dict:
+    counts = (1, 10) if quick else (1, 10, 100, 1000)
+    repeats = 3 if quick else 5
+    results = {"quick": quick, "machine": os.uname().machine, "cores": os.cpu_count(), "rows": [], "peer": [],
+               "targets": TARGETS}
+    for layout in ("apart", "piled"):
+        for n in counts:
+            settle = 0 if layout == "apart" else (30 if quick else 120)
+            results["rows"].append(measure_blobsim(n, layout, repeats, settle))
+            peer = None if quick else measure_peer(n, layout, 3, settle)
+            if peer:
+                results["peer"].append(peer)
+    results["core"] = measure_core(counts[-1], repeats)
+    results["startup"] = measure_startup(2 if quick else 5)
+    results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
+    results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
+    results["peak_rss_mib_bench"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return results
+
+
+def format_bench(r: dict) -> str:
+    lines = [f"blobsim bench ({'quick' if r['quick'] else 'full'}; {r['cores']} cores, {r['machine']}); "
+             "medians of repeated runs",
+             "", f"{'layout':7s} {'blobs':>6s} {'vertices':>9s} {'ms/step':>9s} {'ms/substep':>10s} "
+             f"{'Mvertex-substeps/s':>19s} {'ns/vertex-substep':>18s} {'pymunk ms/step':>15s} {'speed-up':>9s}"]
+    peers = {(p["layout"], p["blobs"]): p for p in r["peer"]}
+    for row in r["rows"]:
+        peer = peers.get((row["layout"], row["blobs"]))
+        lines.append(f"{row['layout']:7s} {row['blobs']:6d} {row['vertices']:9d} {row['ms_per_step']:9.3f} "
+                     f"{row['ms_per_substep']:10.3f} {row['vertex_substeps_per_s'] / 1e6:19.2f} "
+                     f"{row['ns_per_vertex_substep']:18.1f} "
+                     + (f"{peer['ms_per_step']:15.3f} {peer['ms_per_step'] / row['ms_per_step']:8.1f}x" if peer else
+                        f"{'—':>15s} {'—':>9s}"))
+    if not r["peer"] and not r["quick"]:
+        lines.append("(pymunk peer skipped: pip install -e '.[bench]' to compare)")
+    t = r["targets"]
+    rows = {(x["layout"], x["blobs"]): x for x in r["rows"]}
+    lines.append("")
+    c = r["core"]
+    lines.append(f"core substep (predict, perimeter, area, floor) at {c['blobs']} blobs: "
+                 f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep (target <= {t['core_ns_per_vertex_substep_1000']:g})")
+    if ("piled", 1000) in rows:
+        lines.append(f"piled substep at 1000 blobs: {rows[('piled', 1000)]['ms_per_substep']:.2f} ms "
+                     f"(target <= {t['piled_ms_per_substep_1000']:g})")
+    for layout in ("apart", "piled"):
+        if (layout, 1000) in rows and (layout, 100) in rows:
+            ratio = rows[(layout, 1000)]["ms_per_step"] / rows[(layout, 100)]["ms_per_step"]
+            lines.append(f"scaling, {layout}: 1000 blobs cost {ratio:.1f}× 100 blobs (target <= {t['scaling_1000_over_100']:g})")
+    s = r["startup"]
+    lines.append(f"blobsim run, 1 blob, 1000 steps: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s "
+                 f"(target warm <= {t['one_blob_1000_steps_warm_s']:g} s)")
+    rec = r["recording"]
+    lines.append(f"recording every step vs every 10th ({rec['blobs']} blobs, {rec['steps']} steps): "
+                 f"{rec['every_1_s']:.3f} s vs {rec['every_10_s']:.3f} s, +{100 * rec['overhead']:.1f}% "
+                 f"(target <= {100 * t['record_every_step_overhead']:g}%)")
+    m = r["memory"]
+    lines.append(f"peak memory of blobsim run ({m['blobs']} blobs): {m['peak_mib']:.0f} MiB for {m['steps']} steps, "
+                 f"{m['peak_mib_4x_steps']:.0f} MiB for {4 * m['steps']}")
+    return "\n".join(lines)
+
+
+def main(quick: bool, json_path: str | None) -> int:
+    results = run_bench(quick)
+    print(format_bench(results))
+    if json_path:
+        Path(json_path).write_text(json.dumps(results, indent=2) + "\n")
+    return 0

@@ -1,0 +1,22 @@
+"""The bench runs and reports every figure (no timing is asserted: targets are printed, not tested)."""
+
+import json
+import subprocess
+import sys
+
+
+def test_quick_bench_runs_and_reports_every_figure(tmp_path):
+    out = tmp_path / "bench.json"
+    r = subprocess.run([sys.executable, "-m", "blobcli", "bench", "--quick", "--json", str(out)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    report = json.loads(out.read_text())
+    assert {(row["layout"], row["blobs"]) for row in report["rows"]} == {
+        ("apart", 1), ("apart", 10), ("piled", 1), ("piled", 10)}
+    assert all(row["vertices"] == 32 * row["blobs"] for row in report["rows"])
+    assert all(row["ms_per_step"] > 0 and row["ns_per_vertex_substep"] > 0 for row in report["rows"])
+    for key in ("core", "startup", "recording", "memory"):
+        assert key in report
+    assert report["startup"]["cold_s"] > 0 and report["startup"]["warm_s"] > 0
+    for line in ("core substep", "blobsim run, 1 blob, 1000 steps", "recording every step", "peak memory"):
+        assert line in r.stdout
