@@ -1,4 +1,9 @@
-"""Area stages: give every blob its target area back. One signature, picked by name.
+"""Area stages: how a blob keeps its volume. One signature, picked by name (AREA_METHODS).
+
+    kot      exact projection onto the target area (the default; below)
+    xpbd     the area as one compliant XPBD constraint per blob, solved iteratively
+    gas      no target area: an ideal-gas pressure force P = P₀ A_target / A
+    springs  no pressure at all: internal springs across the blob, the classic spring blob
 
 Method "kot" (Grant Kot, "Fast and Stable Blob Physics"): move every vertex along a
 direction p_i by the same amount h, with h chosen so the area is exactly the target.
@@ -79,5 +84,105 @@ def area_kot(state, model, params, h):
     _area_kot(state.pos, model.inv_mass, model.offsets, model.target_area)
 
 
-AREA_METHODS = {"kot": area_kot}
+@kernel
+def _gradient_step(pos, inv_mass, o, e, scale):
+    """x_i += scale w_i ∇_i A for one blob, with ∇_i from the positions before the move."""
+    n = e - o
+    xl, yl = pos[e - 1, 0], pos[e - 1, 1]
+    x0, y0 = pos[o, 0], pos[o, 1]
+    for k in range(n):
+        i = o + k
+        if k + 1 < n:
+            xn, yn = pos[i + 1, 0], pos[i + 1, 1]
+        else:
+            xn, yn = x0, y0
+        sx, sy = pos[i, 0], pos[i, 1]
+        pos[i, 0] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
+        pos[i, 1] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
+        xl, yl = sx, sy
+
+
+@kernel
+def _area_and_gradient_norm(pos, inv_mass, o, e):
+    """(A, Σ w_i |∇_i A|²) of one blob."""
+    twice_area = norm = 0.0
+    for i in range(o, e):
+        j = i + 1 if i + 1 < e else o
+        l = i - 1 if i > o else e - 1
+        twice_area += pos[i, 0] * pos[j, 1] - pos[j, 0] * pos[i, 1]
+        gx, gy = 0.5 * (pos[j, 1] - pos[l, 1]), 0.5 * (pos[l, 0] - pos[j, 0])
+        norm += inv_mass[i] * (gx * gx + gy * gy)
+    return 0.5 * twice_area, norm
+
+
+@kernel
+def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
+    # XPBD (Macklin et al. 2016) for C = A - A₀ with ∇_i C = ∇_i A:
+    #   Δλ = (-C - α̃ λ) / (Σ w_i |∇_i A|² + α̃),  x_i += w_i ∇_i A Δλ,  α̃ = α / h².
+    # One linearized step per call: the area converges over the iterations, not exactly.
+    for b in range(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        area, norm = _area_and_gradient_norm(pos, inv_mass, o, e)
+        alpha = compliance[b] / (h * h)
+        if norm + alpha == 0.0:
+            continue
+        dlam = (-(area - target_area[b]) - alpha * lam[b]) / (norm + alpha)
+        lam[b] += dlam
+        _gradient_step(pos, inv_mass, o, e, dlam)
+
+
+@kernel
+def _area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
+    # Ideal gas (Matyka 2004): P = nRT / A, here P = P₀ A₀ / A. The pressure on an edge is
+    # P |e| along its outward normal, half to each end; summed at vertex i that is exactly
+    # P ∇_i A. Applied as a force over the substep, x_i += h² w_i f_i (here split over the
+    # iterations: `scale` = h² / iterations), which symplectic Euler would also give.
+    # The area is the true shoelace area (the 2D "volume" formula of the article is not).
+    for b in range(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        area, _ = _area_and_gradient_norm(pos, inv_mass, o, e)
+        if area * target_area[b] <= 0.0:  # turned inside out: no meaningful pressure
+            continue
+        pressure = gas_pressure[b] * target_area[b] / area
+        _gradient_step(pos, inv_mass, o, e, scale * pressure)
+
+
+@kernel
+def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
+    # XPBD distance constraints, like the perimeter's, across the blob: each vertex to the
+    # opposite one and to its neighbours' neighbours (Gish's and JellyCar's spring bodies).
+    for s in range(pairs.shape[0]):
+        i, j = pairs[s, 0], pairs[s, 1]
+        dx, dy = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]
+        length = (dx * dx + dy * dy) ** 0.5
+        if length == 0.0:
+            continue
+        alpha = compliance[blob_of[i]] / (h * h)
+        dlam = (-(length - rest[s]) - alpha * lam[s]) / (inv_mass[i] + inv_mass[j] + alpha)
+        lam[s] += dlam
+        nx, ny = dx / length, dy / length
+        pos[i, 0] -= inv_mass[i] * dlam * nx
+        pos[i, 1] -= inv_mass[i] * dlam * ny
+        pos[j, 0] += inv_mass[j] * dlam * nx
+        pos[j, 1] += inv_mass[j] * dlam * ny
+
+
+def area_xpbd(state, model, params, h):
+    """The area as a compliant XPBD constraint, one linearized step per iteration."""
+    _area_xpbd(state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance, state.area_lam, h)
+
+
+def area_gas(state, model, params, h):
+    """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
+    _area_gas(state.pos, model.inv_mass, model.offsets, model.target_area, model.gas_pressure,
+              h * h / params.iterations)
+
+
+def area_springs(state, model, params, h):
+    """No pressure: internal springs hold the shape (and can let it invert)."""
+    _area_springs(state.pos, model.inv_mass, model.blob_of, model.spring_pairs, model.spring_rest,
+                  model.spring_compliance, state.spring_lam, h)
+
+
+AREA_METHODS = {"kot": area_kot, "xpbd": area_xpbd, "gas": area_gas, "springs": area_springs}
 assert tuple(AREA_METHODS) == METHODS

@@ -71,6 +71,11 @@ def parser() -> argparse.ArgumentParser:
     view = sub.add_parser("view", help="open a recording (.rrd, or a .h5 converted first) in the rerun viewer")
     view.add_argument("file", metavar="FILE")
 
+    render = sub.add_parser("render", help="draw a filmstrip picture of a run (PNG)")
+    render.add_argument("trajectory", metavar="TRAJ.h5")
+    render.add_argument("-o", "--output", metavar="PNG", help="picture file (default: beside it, as .png)")
+    render.add_argument("--frames", type=_positive_int, default=6, metavar="K", help="frames side by side (default 6)")
+
     bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
     bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
     bench.add_argument("--json", metavar="OUT", help="also write the figures as JSON")
@@ -191,6 +196,17 @@ def cmd_view(args) -> int:
     return 0
 
 
+def cmd_render(args) -> int:
+    from pathlib import Path
+    problem = _trajectory_problem(args.trajectory)
+    if problem:
+        return _fail([problem])
+    from .render import render
+    out = render(args.trajectory, args.output or Path(args.trajectory).with_suffix(".png"), frames=args.frames)
+    print(f"blobsim: drew {out}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
     return bench_main(args.quick, args.json)
@@ -210,7 +226,7 @@ def cmd_compare(args) -> int:
 
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
-            "bench": cmd_bench}
+            "bench": cmd_bench, "render": cmd_render}
 
 
 def main(argv=None) -> int:

@@ -57,6 +57,8 @@ def predict(state, model, params, h):
     """x_prev <- x; v += g h; x += v h; clear this substep's multipliers and contacts."""
     _predict(state.pos, state.prev, state.vel, state.lam, state.contact_depth,
              params.gravity[0], params.gravity[1], h)
+    state.area_lam[:] = 0.0  # the xpbd and springs methods' multipliers, per substep too
+    state.spring_lam[:] = 0.0
 
 
 @kernel

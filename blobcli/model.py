@@ -58,6 +58,12 @@ class Model:
     statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
     bounces: bool  # some blob can bounce off a static (statics present, some restitution > 0)
     orient: np.ndarray  # (B,) +1 counter-clockwise, -1 clockwise: the sign of outward normals
+    # Settings of the other area methods (see area.py):
+    area_compliance: np.ndarray  # (B,) method xpbd: α of the area constraint
+    gas_pressure: np.ndarray  # (B,) N/m, method gas: P₀ at the target area
+    spring_pairs: np.ndarray  # (S, 2) int64, method springs: the internal springs' vertex pairs ...
+    spring_rest: np.ndarray  # (S,) m, ... their rest lengths
+    spring_compliance: np.ndarray  # (B,) m/N, ... and compliance, 1 / stiffness
 
     @property
     def collides(self) -> bool:
@@ -85,6 +91,8 @@ class State:
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
     contact_material: np.ndarray  # (N, 3) combined μ_s, μ_k, e of that contact
     impact_speed: np.ndarray  # (B,) m/s, fastest approach of the blob's ongoing impact on statics
+    area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
+    spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
     # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
     center: np.ndarray  # (B, 2) m, vertex-average centres
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
@@ -132,7 +140,8 @@ def build(scene: Scene) -> tuple[Model, State]:
         velocities.append(np.broadcast_to(np.array(b.velocity), (len(copies) * len(base), 2)))
         area = signed_area(base)
         per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
-                         (b.static_friction, b.friction, b.restitution)))
+                         (b.static_friction, b.friction, b.restitution), b.area_compliance, b.gas_pressure,
+                         b.spring_stiffness))
 
     counts = np.concatenate([p[0] for p in per_blob])
     offsets = np.zeros(len(counts) + 1, dtype=np.int64)
@@ -144,6 +153,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         return np.concatenate([np.full(len(p[0]), p[k], dtype=np.float64) for p in per_blob])
 
     mass, rest_area, pressure, compliance = per(1), per(2), per(3), per(4)
+    area_compliance, gas_pressure, spring_stiffness = per(6), per(7), per(8)
     material = np.concatenate([np.tile(np.array(p[5], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
     blob_of = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
     inv_mass = (counts / mass)[blob_of]
@@ -152,20 +162,37 @@ def build(scene: Scene) -> tuple[Model, State]:
     rest_length = np.hypot(*(pos[nxt] - pos).T)
 
     statics = build_statics(scene.statics)
+    springs = internal_springs(pos, offsets)
     model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
                   rest_length=rest_length, rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
                   statics=statics, bounces=bool(statics) and bool(
                       material[:, 2].any() or any(s.material[:, 2].any() for s in statics)),
-                  orient=np.sign(rest_area))
+                  orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
+                  spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
+                  spring_compliance=1.0 / spring_stiffness)
     n = len(pos)
     state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
                   contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
                   contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
+                  area_lam=np.zeros(len(counts)), spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), blob_box=np.zeros((len(counts), 4)), inv_len2=np.zeros(n),
                   pairs=np.zeros((0, 2), dtype=np.int64), partners=(), c_edge=np.zeros(n, dtype=np.int64),
                   c_t=np.zeros(n), c_depth2=np.zeros(n), blob_contact_depth=np.zeros(n))
     return model, state
+
+
+def internal_springs(pos, offsets) -> np.ndarray:
+    """(S, 2) vertex pairs of the classic spring blob: each vertex to the opposite one and
+    to the one two along the ring (its neighbours' neighbours), without duplicates."""
+    pairs = []
+    for o, e in zip(offsets[:-1], offsets[1:]):
+        n = e - o
+        k = np.arange(n)
+        opposite = np.stack([o + k, o + (k + n // 2) % n], axis=1)[: (n + 1) // 2 if n % 2 else n // 2]
+        second = np.stack([o + k, o + (k + 2) % n], axis=1) if n > 4 else np.zeros((0, 2), dtype=np.int64)
+        pairs += [opposite, second]
+    return np.ascontiguousarray(np.concatenate(pairs).astype(np.int64)) if pairs else np.zeros((0, 2), np.int64)
 
 
 def static_outline(s: StaticDef) -> np.ndarray:

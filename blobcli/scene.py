@@ -20,7 +20,7 @@ MAX_VERTICES = 2_000_000  # total vertices after grids: ~0.4 GB of state arrays
 MAX_BLOBS = 200_000
 MAX_BLOB_VERTICES = 100_000  # one blob's ring (its area sums run in one thread)
 
-METHODS = ("kot",)  # area methods; blobcli.area.AREA_METHODS must have the same names
+METHODS = ("kot", "xpbd", "gas", "springs")  # area methods; blobcli.area.AREA_METHODS has the same names
 STATIC_KINDS = {  # kind -> its geometry keys (all required, except box.angle)
     "plane": ("point", "normal"),
     "segment": ("a", "b"),
@@ -107,6 +107,9 @@ class BlobDef:
     velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
     pressure: float = key(1.0, "", "target area = pressure × rest area", "float", positive)
     compliance: float = key(2e-4, "m/N", "perimeter compliance α (XPBD); 0 = inextensible", "float", nonnegative)
+    area_compliance: float = key(0.0, "m²/N", "method xpbd: compliance α of the area constraint; 0 = hard", "float", nonnegative)
+    gas_pressure: float = key(20.0, "N/m", "method gas: pressure P₀ at the target area (P = P₀ A_target / A)", "float", positive)
+    spring_stiffness: float = key(2000.0, "N/m", "method springs: stiffness of the internal springs", "float", positive)
     friction: float = key(0.5, "", "kinetic (sliding) friction coefficient μ_k", "float", nonnegative)
     static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction)", "float", nonnegative)
     restitution: float = key(0.0, "", "bounciness e in [0, 1]", "float", unit_interval)

@@ -53,7 +53,7 @@ def one_problem(text: str) -> str:
      "s.toml:2: blob[0].points: polygon intersects itself (edges 0 and 2 cross) (got [[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]])"),
     # unknown kind, method
     (GOOD_BLOB + "[[static]]\nkind = \"plain\"\n", "s.toml:5: static[0].kind: must be one of plane, segment, box, circle, polygon; did you mean 'plane'? (got 'plain')"),
-    ("[scene]\nmethod = \"kott\"\n" + GOOD_BLOB, "s.toml:2: scene.method: unknown method; one of kot; did you mean 'kot'? (got 'kott')"),
+    ("[scene]\nmethod = \"kott\"\n" + GOOD_BLOB, "s.toml:2: scene.method: unknown method; one of kot, xpbd, gas, springs; did you mean 'kot'? (got 'kott')"),
     # kind-specific keys
     (GOOD_BLOB + "[[static]]\nkind = \"plane\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\nradius = 1.0\n",
      "s.toml:8: static[0].radius: unknown key: not a key of kind 'plane'"),

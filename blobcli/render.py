@@ -1,0 +1,71 @@
+"""`blobsim render`: a filmstrip picture of a run (frames side by side, blobs filled).
+
+matplotlib (Agg backend, no display needed) is imported here only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .h5md import read_trajectory
+from .model import static_outline
+from .recording import blob_colors
+from .scene import parse_scene
+
+
+def draw_statics(ax, statics, lo, hi):
+    from matplotlib.patches import Circle
+    extent = 2.0 * float(np.max(hi - lo))
+    for s in statics:
+        if s.kind == "plane":
+            n = np.array(s.normal) / np.hypot(*s.normal)
+            t = np.array([-n[1], n[0]])
+            p = np.array(s.point)
+            # the solid half-plane: a big quad behind the line
+            quad = np.array([p - extent * t, p + extent * t, p + extent * t - extent * n, p - extent * t - extent * n])
+            ax.fill(quad[:, 0], quad[:, 1], color="0.55", zorder=1)
+        elif s.kind == "segment":
+            ax.plot([s.a[0], s.b[0]], [s.a[1], s.b[1]], color="0.3", lw=2, zorder=1)
+        elif s.kind == "circle":
+            ax.add_patch(Circle(s.center, s.radius, color="0.55", zorder=1))
+        else:
+            pts = static_outline(s)
+            ax.fill(pts[:, 0], pts[:, 1], color="0.55", zorder=1)
+
+
+def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
+    """Draw `frames` evenly spaced frames of a trajectory side by side into a PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t = read_trajectory(h5_path)
+    scene = parse_scene(t.scene, str(h5_path))
+    picks = np.unique(np.linspace(0, len(t.step) - 1, frames).round().astype(int))
+    finite = t.position[np.isfinite(t.position).all(axis=2)]
+    lo, hi = finite.min(axis=0), finite.max(axis=0)
+    pad = 0.08 * max(float(np.max(hi - lo)), 0.5)
+    lo, hi = lo - pad, hi + pad
+    aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
+    fig, axes = plt.subplots(1, len(picks), figsize=(width * len(picks), width * min(max(aspect, 0.3), 3.0)),
+                             squeeze=False)
+    colors = blob_colors(len(t.offsets) - 1) / 255.0
+    for ax, f in zip(axes[0], picks):
+        draw_statics(ax, scene.statics, lo, hi)
+        for b in range(len(t.offsets) - 1):
+            ring = t.position[f, t.offsets[b]:t.offsets[b + 1]]
+            ax.fill(ring[:, 0], ring[:, 1], color=colors[b], alpha=0.85, lw=0.6, ec="0.15", zorder=2)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(f"t = {t.time[f]:.2f} s", fontsize=9)
+    fig.suptitle(f"{scene.name}  ({t.attrs.get('method', '')}, {len(t.offsets) - 1} blobs)", fontsize=10)
+    fig.tight_layout()
+    png_path = Path(png_path)
+    png_path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+    return png_path
