@@ -76,6 +76,13 @@ def parser() -> argparse.ArgumentParser:
     render.add_argument("-o", "--output", metavar="PNG", help="picture file (default: beside it, as .png)")
     render.add_argument("--frames", type=_positive_int, default=6, metavar="K", help="frames side by side (default 6)")
 
+    stress = sub.add_parser("stress", help="run the stress scenes with each method: pass or the reason it fails")
+    stress.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="M",
+                        help=f"methods to test (default: all of {', '.join(METHODS)})")
+    stress.add_argument("-o", "--output", default="outputs/stress", metavar="DIR",
+                        help="where the table, CSV, stability map and runs go (default outputs/stress)")
+    stress.add_argument("--quick", action="store_true", help="0.5 s runs and a 2 × 2 map (for smoke tests)")
+
     bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
     bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
     bench.add_argument("--json", metavar="OUT", help="also write the figures as JSON")
@@ -207,6 +214,15 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_stress(args) -> int:
+    from .stress import run_stress
+    result = run_stress(args.methods, args.output, args.quick)
+    print(result["table"])
+    print(f"\nblobsim: {sum(v.passed for v in result['verdicts'])} of {len(result['verdicts'])} runs passed; "
+          f"table, CSV and stability map ({result['out_dir'] / 'stability_map.png'}) in {result['out_dir']}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
     return bench_main(args.quick, args.json)
@@ -226,7 +242,7 @@ def cmd_compare(args) -> int:
 
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
-            "bench": cmd_bench, "render": cmd_render}
+            "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress}
 
 
 def main(argv=None) -> int:
