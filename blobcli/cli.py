@@ -83,6 +83,14 @@ def parser() -> argparse.ArgumentParser:
                         help="where the table, CSV, stability map and runs go (default outputs/stress)")
     stress.add_argument("--quick", action="store_true", help="0.5 s runs and a 2 × 2 map (for smoke tests)")
 
+    study = sub.add_parser("study", help="speed against accuracy per method: a work-precision chart and CSV")
+    study.add_argument("scene", metavar="SCENE")
+    study.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="M")
+    study.add_argument("--tol", type=_positive_float, metavar="E",
+                       help="print each method's cheapest setting with trajectory error <= E")
+    study.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (default: the scene's)")
+    study.add_argument("-o", "--output", default="outputs/study", metavar="DIR", help="default outputs/study")
+
     bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
     bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
     bench.add_argument("--json", metavar="OUT", help="also write the figures as JSON")
@@ -223,6 +231,29 @@ def cmd_stress(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    from pathlib import Path
+
+    from .scene import SceneError, load_scene
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as e:
+        return _fail(e.problems)
+    from .study import chart, cheapest, format_points, run_study, write_csv
+    points = run_study(scene, args.methods, args.output, args.duration)
+    out = Path(args.output)
+    write_csv(points, out / f"{scene.name}_study.csv")
+    chart(points, out / f"{scene.name}_study.png",
+          f"{scene.name}: error against wall time (reference: substeps × 16, same method)")
+    print(format_points(points))
+    if args.tol is not None:
+        print(f"\ncheapest setting with trajectory error <= {args.tol:g}:")
+        for method, p in cheapest(points, args.tol).items():
+            print(f"  {method:8s} " + (f"{p.label} ({p.wall_time:.3f} s)" if p else "none of the ladder"))
+    print(f"\nblobsim: chart {out / (scene.name + '_study.png')}, numbers {out / (scene.name + '_study.csv')}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
     return bench_main(args.quick, args.json)
@@ -242,7 +273,8 @@ def cmd_compare(args) -> int:
 
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
-            "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress}
+            "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress,
+            "study": cmd_study}
 
 
 def main(argv=None) -> int:
