@@ -103,6 +103,7 @@ def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None) ->
             points.append(Point(method, base_dt / divisor, substeps, iterations, result.wall_time, traj, area, perim,
                                 result.status, base_dt=base_dt))
             out.unlink()
+        ref.unlink()  # the runs are only needed for their errors: keep the CSV and the chart
     (out_dir / "warm.h5").unlink(missing_ok=True)
     return points
 
@@ -132,10 +133,13 @@ def chart(points, path, title):
                 continue
             x = [p.wall_time for p in pts]
             y = [max(getattr(p, key), floor) for p in pts]
-            ax.plot(x, y, "o-", label=method, ms=4)
+            dots = ax.plot(x, y, "o", ms=4, alpha=0.5)[0]
+            # the Pareto front: the runs no cheaper run beats
+            front = [(xi, yi, p) for xi, yi, p in zip(x, y, pts) if yi < min(y[:x.index(xi)] or [np.inf])]
+            ax.plot([f[0] for f in front], [f[1] for f in front], "-", color=dots.get_color(), label=method)
             if key == "trajectory_error":
-                for p, xi, yi in zip(pts, x, y):
-                    ax.annotate(p.label, (xi, yi), fontsize=5, alpha=0.7, xytext=(2, 2), textcoords="offset points")
+                for xi, yi, p in front:
+                    ax.annotate(p.label, (xi, yi), fontsize=6, alpha=0.8, xytext=(2, 2), textcoords="offset points")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("wall time (s)")
