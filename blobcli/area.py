@@ -30,8 +30,27 @@ a ≈ 0, where it gives h = -c/b. If b² - 4ac < 0 no h reaches A₀; then h = -
 vertex of the parabola, moves the blob to the nearest area it can reach.
 """
 
-from .jit import kernel
+from .jit import inline_kernel, kernel
+from .perimeter import solve_distance
 from .scene import METHODS
+
+
+@inline_kernel
+def _gradient_step(pos, inv_mass, o, e, scale):
+    """x_i += scale w_i ∇_i A for one blob, with ∇_i from the positions before the move."""
+    n = e - o
+    xl, yl = pos[e - 1, 0], pos[e - 1, 1]
+    x0, y0 = pos[o, 0], pos[o, 1]
+    for k in range(n):
+        i = o + k
+        if k + 1 < n:
+            xn, yn = pos[i + 1, 0], pos[i + 1, 1]
+        else:
+            xn, yn = x0, y0
+        sx, sy = pos[i, 0], pos[i, 1]
+        pos[i, 0] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
+        pos[i, 1] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
+        xl, yl = sx, sy
 
 
 @kernel
@@ -41,7 +60,6 @@ def _area_kot(pos, inv_mass, offsets, target_area):
         n = e - o
         # Pass 1: a, b, c, carrying p_i from one edge to the next.
         xl, yl = pos[e - 1, 0], pos[e - 1, 1]  # x_{i-1}
-        x0, y0 = pos[o, 0], pos[o, 1]
         x1, y1 = pos[o + 1, 0], pos[o + 1, 1]
         px = 0.5 * inv_mass[o] * (y1 - yl)
         py = 0.5 * inv_mass[o] * (xl - x1)
@@ -65,41 +83,13 @@ def _area_kot(pos, inv_mass, offsets, target_area):
         else:
             q = -0.5 * (b + (disc ** 0.5 if b >= 0.0 else -(disc ** 0.5)))
             h = c / q if q != 0.0 else 0.0
-        # Pass 2: x_i += h p_i, with p_i from the old neighbours (kept in xl, yl / x0, y0).
-        xl, yl = pos[e - 1, 0], pos[e - 1, 1]
-        for k in range(n):
-            i = o + k
-            if k + 1 < n:
-                xn, yn = pos[i + 1, 0], pos[i + 1, 1]
-            else:
-                xn, yn = x0, y0
-            sx, sy = pos[i, 0], pos[i, 1]
-            pos[i, 0] = sx + h * 0.5 * inv_mass[i] * (yn - yl)
-            pos[i, 1] = sy + h * 0.5 * inv_mass[i] * (xl - xn)
-            xl, yl = sx, sy
+        # Pass 2: x_i += h p_i = h w_i ∇_i A.
+        _gradient_step(pos, inv_mass, o, e, h)
 
 
 def area_kot(state, model, params, h):
     """Exact area projection (see the module docstring)."""
     _area_kot(state.pos, model.inv_mass, model.offsets, model.target_area)
-
-
-@kernel
-def _gradient_step(pos, inv_mass, o, e, scale):
-    """x_i += scale w_i ∇_i A for one blob, with ∇_i from the positions before the move."""
-    n = e - o
-    xl, yl = pos[e - 1, 0], pos[e - 1, 1]
-    x0, y0 = pos[o, 0], pos[o, 1]
-    for k in range(n):
-        i = o + k
-        if k + 1 < n:
-            xn, yn = pos[i + 1, 0], pos[i + 1, 1]
-        else:
-            xn, yn = x0, y0
-        sx, sy = pos[i, 0], pos[i, 1]
-        pos[i, 0] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
-        pos[i, 1] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
-        xl, yl = sx, sy
 
 
 @kernel
@@ -153,18 +143,7 @@ def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
     # opposite one and to its neighbours' neighbours (Gish's and JellyCar's spring bodies).
     for s in range(pairs.shape[0]):
         i, j = pairs[s, 0], pairs[s, 1]
-        dx, dy = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]
-        length = (dx * dx + dy * dy) ** 0.5
-        if length == 0.0:
-            continue
-        alpha = compliance[blob_of[i]] / (h * h)
-        dlam = (-(length - rest[s]) - alpha * lam[s]) / (inv_mass[i] + inv_mass[j] + alpha)
-        lam[s] += dlam
-        nx, ny = dx / length, dy / length
-        pos[i, 0] -= inv_mass[i] * dlam * nx
-        pos[i, 1] -= inv_mass[i] * dlam * ny
-        pos[j, 0] += inv_mass[j] * dlam * nx
-        pos[j, 1] += inv_mass[j] * dlam * ny
+        solve_distance(pos, inv_mass, i, j, rest[s], lam, s, compliance[blob_of[i]] / (h * h))
 
 
 def area_xpbd(state, model, params, h):

@@ -21,24 +21,21 @@ def _positive_int(text):
     return v
 
 
-def _nonnegative_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number (got {text!r})") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
-    return v
+def _number(allow_zero: bool):
+    """An argparse type: a finite float, > 0 (or >= 0 with allow_zero)."""
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number (got {text!r})") from None
+        if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+            raise argparse.ArgumentTypeError(f"must be a finite number {'>=' if allow_zero else '>'} 0 (got {text})")
+        return v
+    return parse
 
 
-def _positive_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number (got {text!r})") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0 (got {text})")
-    return v
+_positive_float = _number(allow_zero=False)
+_nonnegative_float = _number(allow_zero=True)
 
 
 def parser() -> argparse.ArgumentParser:

@@ -13,14 +13,15 @@ from .jit import inline_kernel, kernel
 
 
 @inline_kernel
-def _solve_edge(pos, inv_mass, rest_length, lam, i, j, alpha):
+def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
+    """One XPBD step of C = |x_j - x_i| - rest, with multiplier lam[k] (see above)."""
     dx, dy = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]
     length = math.sqrt(dx * dx + dy * dy)
     if length == 0.0:
         return
-    C = length - rest_length[i]
-    dlam = (-C - alpha * lam[i]) / (inv_mass[i] + inv_mass[j] + alpha)
-    lam[i] += dlam
+    C = length - rest
+    dlam = (-C - alpha * lam[k]) / (inv_mass[i] + inv_mass[j] + alpha)
+    lam[k] += dlam
     nx, ny = dx / length, dy / length
     pos[i, 0] -= inv_mass[i] * dlam * nx
     pos[i, 1] -= inv_mass[i] * dlam * ny
@@ -45,9 +46,9 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
         for start in range(2):
             for k in range(start, paired, 2):
                 i = o + k
-                _solve_edge(pos, inv_mass, rest_length, lam, i, i + 1 if i + 1 < e else o, alpha)
+                solve_distance(pos, inv_mass, i, i + 1 if i + 1 < e else o, rest_length[i], lam, i, alpha)
         if n % 2 == 1:
-            _solve_edge(pos, inv_mass, rest_length, lam, e - 1, o, alpha)
+            solve_distance(pos, inv_mass, e - 1, o, rest_length[e - 1], lam, e - 1, alpha)
 
 
 def solve_perimeter(state, model, params, h):

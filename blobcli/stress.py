@@ -78,7 +78,9 @@ def detect_inside_out(position, offsets, rest_sign) -> str | None:
     return None
 
 
-def _inside_polygon(points, polygon) -> np.ndarray:
+def depth_inside_polygon(points, polygon) -> np.ndarray:
+    """For each point: its distance to the polygon's boundary if inside, else 0."""
+    points, polygon = np.asarray(points), np.asarray(polygon)
     a, b = polygon, np.roll(polygon, -1, axis=0)
     x, y = points[:, :1], points[:, 1:]
     crosses = (a[:, 1] > y) != (b[:, 1] > y)
@@ -87,8 +89,8 @@ def _inside_polygon(points, polygon) -> np.ndarray:
     inside = (crosses & (x < xc)).sum(axis=1) % 2 == 1
     e = b - a
     u = np.clip(((points[:, None, :] - a) * e).sum(-1) / (e * e).sum(-1), 0, 1)
-    depth = np.linalg.norm(points[:, None, :] - (a + u[..., None] * e), axis=-1).min(axis=1)
-    return inside & (depth > PENETRATION)
+    dist = np.linalg.norm(points[:, None, :] - (a + u[..., None] * e), axis=-1).min(axis=1)
+    return np.where(inside, dist, 0.0)
 
 
 def detect_tunnelled(position, statics) -> str | None:
@@ -112,7 +114,7 @@ def detect_tunnelled(position, statics) -> str | None:
                 u = ((position[f - 1] + (p - position[f - 1]) * (d0 / np.where(d0 != d1, d0 - d1, 1.0))[:, None]) - a) @ t
                 bad = crossing & (u >= 0) & (u <= np.hypot(*(b - a)))
             else:
-                bad = _inside_polygon(p, static_outline(s))
+                bad = depth_inside_polygon(p, static_outline(s)) > PENETRATION
             if np.any(bad):
                 return f"tunnelled (static {k}, frame {f})"
     return None

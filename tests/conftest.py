@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from blobcli import build, build_params, parse_scene, step
+from blobcli.stress import depth_inside_polygon  # noqa: F401 (for the tests)
 
 # Tolerances, with what they bound.
 AREA_ROUNDOFF = 1e-12  # relative area error of a free blob after a projection / a step
@@ -52,21 +53,6 @@ def polygon_area(points) -> float:
 def self_intersects(points) -> bool:
     from blobcli.scene import first_crossing
     return first_crossing(points) is not None
-
-
-def depth_inside_polygon(points, polygon) -> np.ndarray:
-    """For each point: its distance to the polygon's boundary if inside, else 0."""
-    points, polygon = np.asarray(points), np.asarray(polygon)
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    x, y = points[:, :1], points[:, 1:]
-    crosses = (a[:, 1] > y) != (b[:, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    inside = (crosses & (x < xc)).sum(axis=1) % 2 == 1
-    e = b - a
-    u = np.clip(((points[:, None, :] - a) * e).sum(-1) / (e * e).sum(-1), 0, 1)
-    dist = np.linalg.norm(points[:, None, :] - (a + u[..., None] * e), axis=-1).min(axis=1)
-    return np.where(inside, dist, 0.0)
 
 
 FLOOR = """
