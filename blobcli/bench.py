@@ -126,6 +126,65 @@ def measure_core(blobs: int, repeats: int) -> dict:
     return {"blobs": blobs, "ns_per_vertex_substep": sec * 1e9 / model.vertex_count, "us_per_substep": sec * 1e6}
 
 
+def measure_stages(blobs: int, settle_steps: int) -> dict:
+    """Where a piled step's time goes: ms per step for each stage, and the narrow phase's
+    split into detection and resolution, with the number of contacts per iteration."""
+    import time as _time
+
+    import numpy as _np
+
+    from . import collide
+    from .area import AREA_METHODS
+    from .integrate import damp_relative, predict, update_velocities
+    from .model import build, build_params
+    from .perimeter import solve_perimeter
+    from .pipeline import step
+    from .scene import parse_scene
+    from .statics import collide_static
+    scene = parse_scene(scene_text(blobs, "piled"), "bench-stages")
+    model, state = build(scene)
+    params = build_params(scene)
+    for _ in range(settle_steps):
+        step(state, model, params)
+    h = params.dt / params.substeps
+    g = _np.hypot(*params.gravity)
+    up = -params.gravity / g
+    spent = {k: 0.0 for k in ("damp + predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve",
+                              "statics", "velocities")}
+    contacts, steps = [], 5
+
+    def timed(name, fn):
+        t0 = _time.perf_counter()
+        fn()
+        spent[name] += _time.perf_counter() - t0
+
+    def detect():
+        collide._blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
+        deep = _np.empty(len(state.pairs), dtype=_np.bool_)
+        collide._deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
+        collide._detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.inv_len2,
+                        *state.partners, deep, state.c_edge, state.c_t, state.c_depth2)
+        contacts.append(int((state.c_edge >= 0).sum()))
+
+    def resolve():
+        collide._resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient,
+                         model.material, state.c_edge, state.c_t, state.blob_contact_depth, state.center,
+                         state.radius, up[0], up[1])
+    for _ in range(steps):
+        for _ in range(params.substeps):
+            timed("damp + predict", lambda: (damp_relative(state, model, params, h), predict(state, model, params, h)))
+            timed("broad phase", lambda: collide.find_blob_pairs(state, model, params))
+            for _ in range(params.iterations):
+                timed("perimeter", lambda: solve_perimeter(state, model, params, h))
+                timed("area", lambda: AREA_METHODS[params.method](state, model, params, h))
+                timed("blob detect", detect)
+                timed("blob resolve", resolve)
+                timed("statics", lambda: [collide_static(state, model, s) for s in model.statics])
+            timed("velocities", lambda: update_velocities(state, model, params, h))
+    return {"blobs": blobs, "ms_per_step": {k: 1e3 * v / steps for k, v in spent.items()},
+            "contacts_per_iteration": int(_np.median(contacts)), "vertices": model.vertex_count}
+
+
 def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:
     """pymunk (Chipmunk2D): each blob a ring of 32 small circles joined by damped springs,
     with spokes to a centre body; same counts, layouts, dt and substeps as blobsim."""
@@ -249,6 +308,7 @@ def run_bench(quick: bool = False) -> dict:
             if peer:
                 results["peer"].append(peer)
     results["core"] = measure_core(counts[-1], repeats)
+    results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
     results["startup"] = measure_startup(2 if quick else 5)
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
@@ -284,6 +344,10 @@ def format_bench(r: dict) -> str:
         if (layout, 1000) in rows and (layout, 100) in rows:
             ratio = rows[(layout, 1000)]["ms_per_step"] / rows[(layout, 100)]["ms_per_step"]
             lines.append(f"scaling, {layout}: 1000 blobs cost {ratio:.1f}× 100 blobs (target <= {t['scaling_1000_over_100']:g})")
+    st = r["stages"]
+    lines.append(f"piled {st['blobs']} blobs, ms per step by stage: "
+                 + ", ".join(f"{k} {v:.2f}" for k, v in st["ms_per_step"].items())
+                 + f"; {st['contacts_per_iteration']} of {st['vertices']} vertices in blob contact per iteration")
     s = r["startup"]
     lines.append(f"blobsim run, 1 blob, 1000 steps: cold cache {s['cold_s']:.2f} s, warm {s['warm_s']:.2f} s "
                  f"(target warm <= {t['one_blob_1000_steps_warm_s']:g} s)")
