@@ -147,8 +147,6 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
     for _ in range(settle_steps):
         step(state, model, params)
     h = params.dt / params.substeps
-    g = _np.hypot(*params.gravity)
-    up = -params.gravity / g
     spent = {k: 0.0 for k in ("damp + predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve",
                               "statics", "velocities")}
     contacts, steps = [], 5
@@ -159,17 +157,9 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
         spent[name] += _time.perf_counter() - t0
 
     def detect():
-        collide._blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
-        deep = _np.empty(len(state.pairs), dtype=_np.bool_)
-        collide._deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
-        collide._detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.inv_len2,
-                        *state.partners, deep, state.c_edge, state.c_t, state.c_depth2)
+        collide.detect_blob_contacts(state, model, params)
         contacts.append(int((state.c_edge >= 0).sum()))
 
-    def resolve():
-        collide._resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient,
-                         model.material, state.c_edge, state.c_t, state.blob_contact_depth, state.center,
-                         state.radius, up[0], up[1])
     for _ in range(steps):
         for _ in range(params.substeps):
             timed("damp + predict", lambda: (damp_relative(state, model, params, h), predict(state, model, params, h)))
@@ -178,7 +168,7 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
                 timed("perimeter", lambda: solve_perimeter(state, model, params, h))
                 timed("area", lambda: AREA_METHODS[params.method](state, model, params, h))
                 timed("blob detect", detect)
-                timed("blob resolve", resolve)
+                timed("blob resolve", lambda: collide.resolve_blob_contacts(state, model, params))
                 timed("statics", lambda: [collide_static(state, model, s) for s in model.statics])
             timed("velocities", lambda: update_velocities(state, model, params, h))
     return {"blobs": blobs, "ms_per_step": {k: 1e3 * v / steps for k, v in spent.items()},
@@ -353,7 +343,7 @@ def format_bench(r: dict) -> str:
                  f"(target warm <= {t['one_blob_1000_steps_warm_s']:g} s)")
     rec = r["recording"]
     lines.append(f"recording every step vs every 10th ({rec['blobs']} blobs, {rec['steps']} steps): "
-                 f"{rec['every_1_s']:.3f} s vs {rec['every_10_s']:.3f} s, +{100 * rec['overhead']:.1f}% "
+                 f"{rec['every_1_s']:.3f} s vs {rec['every_10_s']:.3f} s, {100 * rec['overhead']:+.1f}% "
                  f"(target <= {100 * t['record_every_step_overhead']:g}%)")
     m = r["memory"]
     lines.append(f"peak memory of blobsim run ({m['blobs']} blobs): {m['peak_mib']:.0f} MiB for {m['steps']} steps, "

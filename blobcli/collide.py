@@ -52,12 +52,10 @@ BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margi
 
 
 @kernel
-def _blob_bounds(pos, offsets, center, radius, box, inv_len2):
+def _blob_bounds(pos, offsets, center, radius, inv_len2):
     for b in range(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
-        x0 = y0 = math.inf
-        x1 = y1 = -math.inf
         for i in range(o, e):
             x, y = pos[i, 0], pos[i, 1]
             j = i + 1 if i + 1 < e else o
@@ -65,14 +63,12 @@ def _blob_bounds(pos, offsets, center, radius, box, inv_len2):
             inv_len2[i] = 1.0 / len2 if len2 > 0.0 else 0.0  # 1 / |edge i|², for the narrow phase
             cx += x
             cy += y
-            x0, y0, x1, y1 = min(x0, x), min(y0, y), max(x1, x), max(y1, y)
         cx /= e - o
         cy /= e - o
         r2 = 0.0
         for i in range(o, e):
             r2 = max(r2, (pos[i, 0] - cx) ** 2 + (pos[i, 1] - cy) ** 2)
         center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
-        box[b, 0], box[b, 1], box[b, 2], box[b, 3] = x0, y0, x1, y1
 
 
 @kernel
@@ -126,7 +122,7 @@ def _find_pairs(center, radius):
 
 def find_blob_pairs(state, model, params):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.inv_len2)
     state.pairs = _find_pairs(state.center, state.radius)
     state.partners = _partners(state.pairs, model.blob_count)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
@@ -325,9 +321,9 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
     pos[e1, 1] -= w1 * dy
 
 
-def collide_blobs(state, model, params):
-    """Narrow phase, then resolution with friction, for this iteration's blob pairs."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.blob_box, state.inv_len2)
+def detect_blob_contacts(state, model, params):
+    """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.inv_len2)
     deep = np.empty(len(state.pairs), dtype=np.bool_)
     _deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
     for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
@@ -335,7 +331,17 @@ def collide_blobs(state, model, params):
                        state.center, state.radius)
     _detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.inv_len2, *state.partners, deep,
             state.c_edge, state.c_t, state.c_depth2)
+
+
+def resolve_blob_contacts(state, model, params):
+    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, vertex order)."""
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
     _resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
              state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1])
+
+
+def collide_blobs(state, model, params):
+    """Narrow phase, then resolution with friction, for this iteration's blob pairs."""
+    detect_blob_contacts(state, model, params)
+    resolve_blob_contacts(state, model, params)

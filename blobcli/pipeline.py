@@ -19,17 +19,17 @@ def step(state: State, model: Model, params: Params) -> None:
     solve_area = AREA_METHODS[params.method]
     for _ in range(params.substeps):
         if params.damping > 0.0:
-            damp_relative(state, model, params, h)        # (v - v_cm) *= exp(-damping h)
+            damp_relative(state, model, params, h)           # (v - v_cm) *= exp(-damping h)
         predict(state, model, params, h)                     # x_prev <- x, v += g h, x += v h
         if model.collides:
             find_blob_pairs(state, model, params)            # broad phase: uniform grid
         for _ in range(params.iterations):
             solve_perimeter(state, model, params, h)         # XPBD edge lengths
-            solve_area(state, model, params, h)              # exact: a h² + b h + c = 0
+            solve_area(state, model, params, h)              # params.method; kot: exact, a h² + b h + c = 0
             if model.collides:
                 collide_blobs(state, model, params)          # vertex out of the other blob, friction
             for statics in model.statics:                    # one pass per collider kind present
                 collide_static(state, model, statics)
-        update_velocities(state, model, params, h)          # v = (x - x_prev) / h, friction
+        update_velocities(state, model, params, h)           # v = (x - x_prev) / h, friction
         if model.bounces:
             restitution(state, model, params, h)             # blobs leave statics at e × approach speed
