@@ -70,26 +70,14 @@ def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_ma
         D = contact_depth[i]
         if D == 0.0:
             continue
+        # At a static contact (static friction already held the vertex in the collider stage):
         nx, ny = contact_normal[i, 0], contact_normal[i, 1]
-        mu_s, mu_k = contact_material[i, 0], contact_material[i, 1]
-        # Static friction at position level (Müller et al. 2020): the surface pushed the
-        # vertex out by D this substep, so Coulomb allows it to hold a tangential slip
-        # |Δx_t| <= μ_s D. Undoing that slip is what keeps a resting blob from creeping.
-        dx, dy = pos[i, 0] - prev[i, 0], pos[i, 1] - prev[i, 1]
-        dn = dx * nx + dy * ny
-        tx, ty = dx - dn * nx, dy - dn * ny
-        stuck = tx * tx + ty * ty <= (mu_s * D) ** 2
-        if stuck:
-            pos[i, 0] -= tx
-            pos[i, 1] -= ty
-        vn = dn * inv_h
-        vtx, vty = tx * inv_h, ty * inv_h
-        if stuck:
-            vtx = vty = 0.0
-        else:
-            # Kinetic friction: |Δv_t| <= μ_k |Δv_n|, with |Δv_n| = D / h.
-            vt = math.sqrt(vtx * vtx + vty * vty)
-            s = max(vt - mu_k * D * inv_h, 0.0) / vt
+        vn = vel[i, 0] * nx + vel[i, 1] * ny
+        vtx, vty = vel[i, 0] - vn * nx, vel[i, 1] - vn * ny
+        # Kinetic friction: |Δv_t| <= μ_k |Δv_n|, with |Δv_n| = D / h.
+        vt = math.sqrt(vtx * vtx + vty * vty)
+        if vt > 0.0:
+            s = max(vt - contact_material[i, 1] * D * inv_h, 0.0) / vt
             vtx *= s
             vty *= s
         # A vertex in contact does not keep approaching the surface (inelastic vertex;
@@ -100,7 +88,7 @@ def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_ma
 
 
 def update_velocities(state, model, params, h):
-    """v = (x - x_prev) / h, then Coulomb friction at static contacts."""
+    """v = (x - x_prev) / h, then kinetic Coulomb friction at static contacts."""
     _update_velocities(state.pos, state.prev, state.vel, state.contact_normal, state.contact_depth,
                        state.contact_material, h)
 

@@ -1,8 +1,10 @@
 """Static collider stages: push vertices out of immovable shapes. One signature, by kind.
 
-Each stage projects a penetrating vertex to the nearest surface, and records the contact
-(normal, push-out depth, combined material) for the velocity update, which applies
-Coulomb friction and restitution from it.
+Each stage projects a penetrating vertex to the nearest surface, applies static friction
+there (`_stuck`), and records the contact (normal, push-out depth, combined material) for the
+velocity update, which applies kinetic friction, and for restitution. Static friction is
+applied here rather than after all stages so that a shape can refuse a hold that would put
+the vertex inside it (beside a reflex corner of a concave polygon, or on a curved circle).
 
 Tunnelling: at 100 m/s and h = 1/240 s a vertex moves 0.42 m per substep, through any
 thin wall. So the segment, circle and polygon stages are swept: they test the path
@@ -29,6 +31,40 @@ def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, con
     contact_material[i, 2] = max(blob_material[2], shape_material[2])
 
 
+@inline_kernel
+def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material):
+    """Where static friction holds the vertex: its slip along the surface this substep undone,
+    if |Δx_t| <= μ_s D (Coulomb, at position level: Müller et al. 2020), D being how far the
+    surfaces pushed it out this substep. Returns (x, y) unchanged when it slides."""
+    nx, ny = contact_normal[i, 0], contact_normal[i, 1]
+    dx, dy = x - prev[i, 0], y - prev[i, 1]
+    dn = dx * nx + dy * ny
+    tx, ty = dx - dn * nx, dy - dn * ny
+    if tx * tx + ty * ty <= (contact_material[i, 0] * contact_depth[i]) ** 2:
+        return x - tx, y - ty
+    return x, y
+
+
+@inline_kernel
+def _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material):
+    """_stuck, but only where that is outside the circle (a chord of a curved surface is not)."""
+    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material)
+    if (sx - cx) ** 2 + (sy - cy) ** 2 >= r * r:
+        return sx, sy
+    return x, y
+
+
+@inline_kernel
+def _inside_shape(geom, start, stop, x, y):
+    """Crossing-number test against the edges geom[start:stop] of one polygon."""
+    inside = False
+    for k in range(start, stop):
+        ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
+        if (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay):
+            inside = not inside
+    return inside
+
+
 @kernel
 def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                    contact_normal, contact_depth, contact_material):
@@ -38,10 +74,11 @@ def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape
             px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
             d = (pos[i, 0] - px) * nx + (pos[i, 1] - py) * ny
             if d < 0.0:
-                pos[i, 0] -= d * nx
-                pos[i, 1] -= d * ny
                 _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
+                # on the plane, and held there by static friction (it stays on a flat plane)
+                pos[i, 0], pos[i, 1] = _stuck(i, pos[i, 0] - d * nx, pos[i, 1] - d * ny, prev, contact_normal,
+                                              contact_depth, contact_material)
 
 
 @kernel
@@ -77,10 +114,10 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
             if u < 0.0 or u > length:
                 continue
             depth = SKIN - s1
-            x += depth * side * nx
-            y += depth * side * ny
             _record(i, side * nx, side * ny, depth, blob_material[blob_of[i]], shape_material[s],
                     contact_normal, contact_depth, contact_material)
+            x, y = _stuck(i, x + depth * side * nx, y + depth * side * ny, prev, contact_normal, contact_depth,
+                          contact_material)
         pos[i, 0], pos[i, 1] = x, y
 
 
@@ -111,6 +148,8 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
                         y -= d * ny
                         _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
                                 contact_normal, contact_depth, contact_material)
+                        x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth,
+                                                     contact_material)
                         continue
             rx, ry = x - cx, y - cy
             dist = math.sqrt(rx * rx + ry * ry)
@@ -122,6 +161,7 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
                 x, y = cx + r * nx, cy + r * ny
                 _record(i, nx, ny, r - dist, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
+                x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material)
         pos[i, 0], pos[i, 1] = x, y
 
 
@@ -162,8 +202,11 @@ def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
                 y -= d * ny
                 _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
-            elif inside:
-                # Began inside (spawned there, or pushed in by another stage): nearest boundary point.
+                # Beside a reflex corner that line runs inside the solid: check again.
+                inside = _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], x, y)
+            if inside:
+                # Began inside (spawned there, pushed in by another stage), or still inside after
+                # the swept projection: out to the nearest boundary point.
                 best_d2, qx, qy = math.inf, x, y
                 for k in range(shape_offsets[s], shape_offsets[s + 1]):
                     ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
@@ -179,6 +222,11 @@ def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
                     x, y = qx, qy
                     _record(i, nx, ny, depth, blob_material[blob_of[i]], shape_material[s],
                             contact_normal, contact_depth, contact_material)
+            if best >= 0 or inside:
+                # Static friction, unless holding the vertex would put it inside (reflex corners).
+                sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material)
+                if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
+                    x, y = sx, sy
         pos[i, 0], pos[i, 1] = x, y
 
 
