@@ -18,6 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 VERTICES = 32
 RADIUS = 0.2  # m
 TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
@@ -129,10 +131,6 @@ def measure_core(blobs: int, repeats: int) -> dict:
 def measure_stages(blobs: int, settle_steps: int) -> dict:
     """Where a piled step's time goes: ms per step for each stage, and the narrow phase's
     split into detection and resolution, with the number of contacts per iteration."""
-    import time as _time
-
-    import numpy as _np
-
     from . import collide
     from .area import AREA_METHODS
     from .integrate import damp_relative, predict, update_velocities
@@ -152,9 +150,9 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
     contacts, steps = [], 5
 
     def timed(name, fn):
-        t0 = _time.perf_counter()
+        t0 = time.perf_counter()
         fn()
-        spent[name] += _time.perf_counter() - t0
+        spent[name] += time.perf_counter() - t0
 
     def detect():
         collide.detect_blob_contacts(state, model, params)
@@ -172,7 +170,7 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
                 timed("statics", lambda: [collide_static(state, model, s) for s in model.statics])
             timed("velocities", lambda: update_velocities(state, model, params, h))
     return {"blobs": blobs, "ms_per_step": {k: 1e3 * v / steps for k, v in spent.items()},
-            "contacts_per_iteration": int(_np.median(contacts)), "vertices": model.vertex_count}
+            "contacts_per_iteration": int(np.median(contacts)), "vertices": model.vertex_count}
 
 
 def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:

@@ -232,6 +232,7 @@ class Trajectory:
     area: np.ndarray  # (frames, B)
     kinetic_energy: np.ndarray  # (frames, B)
     target_area: np.ndarray  # (B,)
+    mass: np.ndarray  # (B,) kg
     complete: bool
     attrs: dict  # /parameters attrs
     scene: str
@@ -245,5 +246,5 @@ def read_trajectory(path) -> Trajectory:
                           offsets=p["blob_offsets"][...], names=[s.decode() for s in p["blob_names"][...]],
                           area=f["observables/area/value"][...],
                           kinetic_energy=f["observables/kinetic_energy/value"][...],
-                          target_area=p["target_area"][...], complete=bool(f.attrs["complete"]),
+                          target_area=p["target_area"][...], mass=p["mass"][...], complete=bool(f.attrs["complete"]),
                           attrs=dict(p.attrs), scene=p["scene"][()].decode())

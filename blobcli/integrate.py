@@ -9,6 +9,8 @@ import math
 
 from .jit import kernel
 
+REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
+
 
 @kernel
 def _damp_relative(vel, inv_mass, offsets, factor):
@@ -144,5 +146,3 @@ def restitution(state, model, params, h):
     _restitution(state.vel, model.inv_mass, model.offsets, state.contact_normal, state.contact_depth,
                  state.contact_material, state.impact_speed, rest_speed)
 
-
-REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)

@@ -150,7 +150,7 @@ def judge(path, status: str) -> list[str]:
         return [reason]
     offsets = t.offsets
     counts = np.diff(offsets)
-    vertex_mass = np.repeat(np.asarray(read_masses(path)) / counts, counts)
+    vertex_mass = np.repeat(t.mass / counts, counts)
     rest_sign = np.sign(signed_areas(t.position[:1], offsets)[0])
     for reason in (detect_inside_out(t.position, offsets, rest_sign),
                    detect_tunnelled(t.position, scene.statics),
@@ -160,12 +160,6 @@ def judge(path, status: str) -> list[str]:
         if reason:
             failures.append(reason)
     return failures
-
-
-def read_masses(path):
-    import h5py
-    with h5py.File(path, "r") as f:
-        return f["parameters/mass"][...]
 
 
 def run_one(scene, method: str, out: Path) -> Verdict:

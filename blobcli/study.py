@@ -44,12 +44,11 @@ class Point:
     area_error: float
     perimeter_error: float
     status: str
+    divisor: int = 1  # dt = the scene's dt / divisor
 
     @property
     def label(self) -> str:
-        return f"dt/{round(self.base_dt / self.dt)} s{self.substeps} i{self.iterations}"
-
-    base_dt: float = 0.0
+        return f"dt/{self.divisor} s{self.substeps} i{self.iterations}"
 
 
 def _run(scene, out, method, dt, substeps, iterations, every):
@@ -101,7 +100,7 @@ def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None) ->
             result = _run(scene, out, method, base_dt / divisor, substeps, iterations, every * divisor)
             traj, area, perim = errors(out, ref)
             points.append(Point(method, base_dt / divisor, substeps, iterations, result.wall_time, traj, area, perim,
-                                result.status, base_dt=base_dt))
+                                result.status, divisor))
             out.unlink()
         ref.unlink()  # the runs are only needed for their errors: keep the CSV and the chart
     (out_dir / "warm.h5").unlink(missing_ok=True)

@@ -9,9 +9,8 @@ from hypothesis import strategies as st
 import blobcli.pipeline
 from blobcli import blob_measures, build, build_params, load_scene, step
 from blobcli.collide import _find_pairs, find_blob_pairs
-from blobcli.scene import with_overrides
 from conftest import (BLOB_PENETRATION, LOADED_AREA, MIRROR, MOMENTUM_ROUNDOFF, REST_CREEP, STACK_FLICKER,
-                      depth_inside_polygon, momentum, scene, self_intersects)
+                      depth_inside_polygon, momentum, scene, self_intersects, simulate_steps)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -52,13 +51,8 @@ def test_head_on_collision_conserves_momentum_and_mirror_symmetry():
     assert state.vel[:32, 0].mean() < -0.5  # they bounced apart
 
 
-def settle(name, steps, **overrides):
-    sc = with_overrides(load_scene(ROOT / "scenes" / f"{name}.toml"), steps=steps)
-    model, state = build(sc)
-    params = build_params(sc)
-    for _ in range(steps):
-        step(state, model, params)
-    return model, state, params
+def settle(name, steps):
+    return simulate_steps((ROOT / "scenes" / f"{name}.toml").read_text(), steps)
 
 
 def deepest_overlap(state, model):

@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_study_measures_every_setting_and_errors_shrink_with_refinement(tmp_path):
     points = run_study(load_scene(ROOT / "scenes" / "gish.toml"), ("kot", "gas"), tmp_path, duration=1.0)  # lands at ~0.5 s
     assert len(points) == 2 * len(LADDER)
-    kot = {(round(p.base_dt / p.dt), p.substeps, p.iterations): p for p in points if p.method == "kot"}
+    kot = {(p.divisor, p.substeps, p.iterations): p for p in points if p.method == "kot"}
     assert kot[(1, 16, 2)].trajectory_error < kot[(1, 4, 2)].trajectory_error < kot[(1, 1, 1)].trajectory_error
     assert kot[(1, 16, 2)].area_error < kot[(1, 1, 1)].area_error
     # the same substep length h = dt / substeps gives the same run
