@@ -30,7 +30,9 @@ a ≈ 0, where it gives h = -c/b. If b² - 4ac < 0 no h reaches A₀; then h = -
 vertex of the parabola, moves the blob to the nearest area it can reach.
 """
 
-from .jit import inline_kernel, kernel
+import numba
+
+from .jit import inline_kernel, kernel, parallel_kernel
 from .perimeter import solve_distance
 from .scene import METHODS
 
@@ -53,9 +55,9 @@ def _gradient_step(pos, inv_mass, o, e, scale):
         xl, yl = sx, sy
 
 
-@kernel
+@parallel_kernel
 def _area_kot(pos, inv_mass, offsets, target_area):
-    for blob in range(offsets.shape[0] - 1):
+    for blob in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[blob], offsets[blob + 1]
         n = e - o
         # Pass 1: a, b, c, carrying p_i from one edge to the next.
@@ -105,12 +107,12 @@ def _area_and_gradient_norm(pos, inv_mass, o, e):
     return 0.5 * twice_area, norm
 
 
-@kernel
+@parallel_kernel
 def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
     # XPBD (Macklin et al. 2016) for C = A - A₀ with ∇_i C = ∇_i A:
     #   Δλ = (-C - α̃ λ) / (Σ w_i |∇_i A|² + α̃),  x_i += w_i ∇_i A Δλ,  α̃ = α / h².
     # One linearized step per call: the area converges over the iterations, not exactly.
-    for b in range(offsets.shape[0] - 1):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         area, norm = _area_and_gradient_norm(pos, inv_mass, o, e)
         alpha = compliance[b] / (h * h)
@@ -121,14 +123,14 @@ def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
         _gradient_step(pos, inv_mass, o, e, dlam)
 
 
-@kernel
+@parallel_kernel
 def _area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
     # Ideal gas (Matyka 2004): P = nRT / A, here P = P₀ A₀ / A. The pressure on an edge is
     # P |e| along its outward normal, half to each end; summed at vertex i that is exactly
     # P ∇_i A. Applied as a force over the substep, x_i += h² w_i f_i (here split over the
     # iterations: `scale` = h² / iterations), which symplectic Euler would also give.
     # The area is the true shoelace area (the 2D "volume" formula of the article is not).
-    for b in range(offsets.shape[0] - 1):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         area, _ = _area_and_gradient_norm(pos, inv_mass, o, e)
         if area * target_area[b] <= 0.0:  # turned inside out: no meaningful pressure

@@ -51,16 +51,20 @@ from .jit import inline_kernel, kernel, parallel_kernel
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 
 
-@kernel
-def _blob_bounds(pos, offsets, center, radius, inv_len2):
-    for b in range(offsets.shape[0] - 1):
+@parallel_kernel
+def _blob_bounds(pos, offsets, center, radius, edges):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
         for i in range(o, e):
             x, y = pos[i, 0], pos[i, 1]
             j = i + 1 if i + 1 < e else o
-            len2 = (pos[j, 0] - x) ** 2 + (pos[j, 1] - y) ** 2
-            inv_len2[i] = 1.0 / len2 if len2 > 0.0 else 0.0  # 1 / |edge i|², for the narrow phase
+            ex, ey = pos[j, 0] - x, pos[j, 1] - y
+            len2 = ex * ex + ey * ey
+            # The edge table the narrow phase reads, one row per quantity so that its loop
+            # over a blob's edges reads contiguous memory and vectorizes.
+            edges[0, i], edges[1, i], edges[2, i], edges[3, i] = x, y, ex, ey
+            edges[4, i] = 1.0 / len2 if len2 > 0.0 else 0.0
             cx += x
             cy += y
         cx /= e - o
@@ -122,7 +126,7 @@ def _find_pairs(center, radius):
 
 def find_blob_pairs(state, model, params):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.inv_len2)
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
     state.pairs = _find_pairs(state.center, state.radius)
     state.partners = _partners(state.pairs, model.blob_count)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
@@ -201,12 +205,18 @@ def _deep_pairs(pos, offsets, pairs, center, deep):
 
 
 @parallel_kernel
-def _detect(pos, offsets, orient, center, radius, inv_len2, start, partner, pair_of, deep, c_edge, c_t, c_depth2):
+def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of, deep, c_edge, c_t, c_depth2):
     """For every vertex: the edge it must leave (c_edge = -1: none), from its deepest contact.
 
     Parallel over blobs; each blob writes only its own vertices' slots, and keeps the
     deepest of its contacts, so the result does not depend on the number of threads."""
+    longest = 0
+    for b in range(offsets.shape[0] - 1):
+        longest = max(longest, offsets[b + 1] - offsets[b])
     for A in numba.prange(offsets.shape[0] - 1):
+        d2 = np.empty(longest)  # per edge of the partner: squared distance, t, normal opposes
+        t = np.empty(longest)
+        opposes = np.empty(longest, np.bool_)
         oa, ea = offsets[A], offsets[A + 1]
         for i in range(oa, ea):
             c_edge[i] = -1
@@ -215,7 +225,9 @@ def _detect(pos, offsets, orient, center, radius, inv_len2, start, partner, pair
                 continue
             B = partner[k]
             ob, eb = offsets[B], offsets[B + 1]
+            n = eb - ob
             cx, cy, r2 = center[B, 0], center[B, 1], radius[B] * radius[B]
+            ax, ay, ex, ey, inv_len2 = edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb], edges[4, ob:eb]
             for i in range(oa, ea):
                 x, y = pos[i, 0], pos[i, 1]
                 if (x - cx) ** 2 + (y - cy) ** 2 > r2:  # outside B's bounding circle
@@ -225,33 +237,35 @@ def _detect(pos, offsets, orient, center, radius, inv_len2, start, partner, pair
                 inx = i + 1 if i + 1 < ea else oa
                 vnx = orient[A] * (pos[inx, 1] - pos[ip, 1])
                 vny = -orient[A] * (pos[inx, 0] - pos[ip, 0])
-                # One pass over B's edges: crossing parity, and the nearest edge (any / opposing).
-                inside = False
-                best_opp = best_any = math.inf
-                e_opp = e_any = -1
-                t_opp = t_any = 0.0
-                j = eb - 1
-                for jn in range(ob, eb):
-                    ax, ay = pos[j, 0], pos[j, 1]
-                    ex, ey = pos[jn, 0] - ax, pos[jn, 1] - ay
-                    rx, ry = x - ax, y - ay
+                # Pass 1, over B's edges with no branches (it vectorizes): crossing parity,
+                # each edge's nearest point and whether its normal opposes p's.
+                crossings = 0
+                for m in range(n):
+                    rx, ry = x - ax[m], y - ay[m]
                     # crossing number, without dividing: the ray x' > x crosses this edge
-                    if (ay > y) != (ay + ey > y) and (rx * ey - ry * ex) * ey < 0.0:
-                        inside = not inside
-                    t = min(max((rx * ex + ry * ey) * inv_len2[j], 0.0), 1.0)
-                    d2 = (t * ex - rx) ** 2 + (t * ey - ry) ** 2
-                    if d2 < best_any:
-                        best_any, e_any, t_any = d2, j, t
-                    if d2 < best_opp and orient[B] * (ey * vnx - ex * vny) < 0.0:  # normals oppose
-                        best_opp, e_opp, t_opp = d2, j, t
-                    j = jn
-                if not inside or e_any < 0:
+                    crossings += ((ay[m] > y) != (ay[m] + ey[m] > y)) & ((rx * ey[m] - ry * ex[m]) * ey[m] < 0.0)
+                    t[m] = min(max((rx * ex[m] + ry * ey[m]) * inv_len2[m], 0.0), 1.0)
+                    d2[m] = (t[m] * ex[m] - rx) ** 2 + (t[m] * ey[m] - ry) ** 2
+                    opposes[m] = orient[B] * (ey[m] * vnx - ex[m] * vny) < 0.0
+                if crossings % 2 == 0:  # outside B
                     continue
-                if e_opp < 0:
-                    e_opp, t_opp, best_opp = e_any, t_any, best_any
+                # Pass 2: the nearest edge, and the nearest whose normal opposes p's. Ties go
+                # to the first in ring order from the closing edge: n - 1, 0, 1, ..., n - 2.
+                best_opp = best_any = math.inf
+                m_opp = m_any = -1
+                for q in range(n):
+                    m = q - 1 if q > 0 else n - 1
+                    if d2[m] < best_any:
+                        best_any, m_any = d2[m], m
+                    if d2[m] < best_opp and opposes[m]:
+                        best_opp, m_opp = d2[m], m
+                if m_any < 0:
+                    continue
+                if m_opp < 0:
+                    m_opp, best_opp = m_any, best_any
                 # keep the deepest contact of this vertex (its depth: distance to the edge)
                 if c_edge[i] < 0 or best_opp > c_depth2[i]:
-                    c_edge[i], c_t[i], c_depth2[i] = e_opp, t_opp, best_opp
+                    c_edge[i], c_t[i], c_depth2[i] = ob + m_opp, t[m_opp], best_opp
 
 
 @kernel
@@ -323,13 +337,13 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 def detect_blob_contacts(state, model, params):
     """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.inv_len2)
+    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
     deep = np.empty(len(state.pairs), dtype=np.bool_)
     _deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
     for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
         _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
                        state.center, state.radius)
-    _detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.inv_len2, *state.partners, deep,
+    _detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.edges, *state.partners, deep,
             state.c_edge, state.c_t, state.c_depth2)
 
 

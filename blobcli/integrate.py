@@ -7,14 +7,16 @@ constraint stages move x*, and then reads the velocity back as v = (x - x_prev) 
 
 import math
 
-from .jit import kernel
+import numba
+
+from .jit import parallel_kernel
 
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
 
 
-@kernel
+@parallel_kernel
 def _damp_relative(vel, inv_mass, offsets, factor):
-    for b in range(offsets.shape[0] - 1):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         m_sum = px = py = 0.0
         for i in range(o, e):
@@ -42,9 +44,9 @@ def damp_relative(state, model, params, h):
     _damp_relative(state.vel, model.inv_mass, model.offsets, math.exp(-params.damping * h))
 
 
-@kernel
+@parallel_kernel
 def _predict(pos, prev, vel, lam, contact_depth, gx, gy, h):
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         prev[i, 0] = pos[i, 0]
         prev[i, 1] = pos[i, 1]
         vel[i, 0] += gx * h
@@ -63,10 +65,10 @@ def predict(state, model, params, h):
     state.spring_lam[:] = 0.0
 
 
-@kernel
+@parallel_kernel
 def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_material, h):
     inv_h = 1.0 / h
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         vel[i, 0] = (pos[i, 0] - prev[i, 0]) * inv_h
         vel[i, 1] = (pos[i, 1] - prev[i, 1]) * inv_h
         D = contact_depth[i]
@@ -95,10 +97,10 @@ def update_velocities(state, model, params, h):
                        state.contact_material, h)
 
 
-@kernel
+@parallel_kernel
 def _restitution(vel, inv_mass, offsets, contact_normal, contact_depth, contact_material,
                  impact_speed, rest_speed):
-    for b in range(offsets.shape[0] - 1):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         nx = ny = m_sum = ux = uy = 0.0
         restitution = 0.0

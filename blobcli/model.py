@@ -96,7 +96,7 @@ class State:
     # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
     center: np.ndarray  # (B, 2) m, vertex-average centres
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
-    inv_len2: np.ndarray  # (N,) 1/m², 1 / |edge i|² at the current positions
+    edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m), 1/|edge|² (1/m²)
     pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
     partners: tuple  # each blob's partners, CSR: (start (B+1,), partner (2P,), pair index (2P,))
     c_edge: np.ndarray  # (N,) int64, vertex i's contact: the edge (by its first vertex) it must leave, or -1 ...
@@ -175,7 +175,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
                   contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
                   area_lam=np.zeros(len(counts)), spring_lam=np.zeros(len(model.spring_pairs)),
-                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), inv_len2=np.zeros(n),
+                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), edges=np.zeros((5, n)),
                   pairs=np.zeros((0, 2), dtype=np.int64), partners=(), c_edge=np.zeros(n, dtype=np.int64),
                   c_t=np.zeros(n), c_depth2=np.zeros(n), blob_contact_depth=np.zeros(n))
     return model, state

@@ -9,7 +9,9 @@ this stage never moves a blob's centre of mass. α = 0 makes the edge inextensib
 
 import math
 
-from .jit import inline_kernel, kernel
+import numba
+
+from .jit import inline_kernel, parallel_kernel
 
 
 @inline_kernel
@@ -29,7 +31,7 @@ def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
     pos[j, 1] += inv_mass[j] * dlam * ny
 
 
-@kernel
+@parallel_kernel
 def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
     # Red-black order: even edges, then odd edges, then (odd rings only) the closing edge.
     # Within a colour no two edges share a vertex, so the order inside it does not matter
@@ -38,7 +40,7 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
     # like a tank tread and makes a resting blob spin up and roll away. (Alternating
     # even-first and odd-first between calls looks more symmetric, but that period-2
     # forcing excites a wobble that grows without bound at one iteration per substep.)
-    for b in range(offsets.shape[0] - 1):
+    for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
         n = e - o
         alpha = compliance[b] / (h * h)

@@ -16,7 +16,9 @@ Materials combine as Box2D does: μ = √(μ_blob μ_static), e = max(e_blob, e_
 
 import math
 
-from .jit import inline_kernel, kernel
+import numba
+
+from .jit import inline_kernel, parallel_kernel
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
 
@@ -65,11 +67,11 @@ def _inside_shape(geom, start, stop, x, y):
     return inside
 
 
-@kernel
+@parallel_kernel
 def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                    contact_normal, contact_depth, contact_material):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         for s in range(geom.shape[0]):
             px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
             d = (pos[i, 0] - px) * nx + (pos[i, 1] - py) * ny
@@ -81,13 +83,13 @@ def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape
                                               contact_depth, contact_material)
 
 
-@kernel
+@parallel_kernel
 def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] - SKIN or min(x, x0) > aabb[s, 2] + SKIN
@@ -121,10 +123,10 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
         pos[i, 0], pos[i, 1] = x, y
 
 
-@kernel
+@parallel_kernel
 def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                     contact_normal, contact_depth, contact_material):
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
@@ -165,11 +167,11 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
         pos[i, 0], pos[i, 1] = x, y
 
 
-@kernel
+@parallel_kernel
 def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
-    for i in range(pos.shape[0]):
+    for i in numba.prange(pos.shape[0]):
         x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
         for s in range(shape_offsets.shape[0] - 1):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
