@@ -75,7 +75,7 @@ def _blob_bounds(pos, offsets, center, radius, edges):
         center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
 
 
-@kernel
+@parallel_kernel
 def _find_pairs(center, radius):
     B = center.shape[0]
     r_max = radius.max()
@@ -101,27 +101,39 @@ def _find_pairs(center, radius):
     for b in range(B):
         order[fill[cell_of[b]]] = b
         fill[cell_of[b]] += 1
-    # Two passes over the 3 × 3 neighbourhoods: count, then fill.
-    pairs = np.empty((0, 2), np.int64)
-    for fill_pass in range(2):
-        count = 0
-        for a in range(B):
-            ix, iy = cell_of[a] % nx, cell_of[a] // nx
-            for jy in range(max(iy - 1, 0), min(iy + 2, ny)):
-                for jx in range(max(ix - 1, 0), min(ix + 2, nx)):
-                    c = jy * nx + jx
-                    for k in range(start[c], start[c + 1]):
-                        b = order[k]
-                        if b <= a:
-                            continue
-                        reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
-                        if (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2 < reach * reach:
-                            if fill_pass == 1:
-                                pairs[count, 0], pairs[count, 1] = a, b
-                            count += 1
-        if fill_pass == 0:
-            pairs = np.empty((count, 2), np.int64)
+    # Two passes over each blob's 3 × 3 neighbourhood, in parallel over blobs: count, then
+    # fill from each blob's own offset, so the order is the same for any thread count.
+    first = np.zeros(B + 1, np.int64)
+    nowhere = np.empty((0, 2), np.int64)
+    for a in numba.prange(B):
+        first[a + 1] = _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, nowhere, False)
+    for a in range(B):
+        first[a + 1] += first[a]
+    pairs = np.empty((first[B], 2), np.int64)
+    for a in numba.prange(B):
+        _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, True)
     return pairs
+
+
+@inline_kernel
+def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill):
+    """Blobs b > a in the cells around a's, closer than r_a + r_b + margin; with fill, write
+    them as pairs[first[a]:] (in cell order, then by index). Returns how many."""
+    count = 0
+    ix, iy = cell_of[a] % nx, cell_of[a] // nx
+    for jy in range(max(iy - 1, 0), min(iy + 2, ny)):
+        for jx in range(max(ix - 1, 0), min(ix + 2, nx)):
+            c = jy * nx + jx
+            for k in range(start[c], start[c + 1]):
+                b = order[k]
+                if b <= a:
+                    continue
+                reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
+                if (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2 < reach * reach:
+                    if fill:
+                        pairs[first[a] + count, 0], pairs[first[a] + count, 1] = a, b
+                    count += 1
+    return count
 
 
 def find_blob_pairs(state, model, params):
@@ -196,12 +208,14 @@ def _partners(pairs, blob_count):
 
 
 @parallel_kernel
-def _deep_pairs(pos, offsets, pairs, center, deep):
+def _deep_pairs(pos, offsets, pairs, center, radius, deep):
     """deep[k]: either centre of pair k lies inside the other blob."""
     for k in numba.prange(pairs.shape[0]):
         a, b = pairs[k, 0], pairs[k, 1]
-        deep[k] = (_inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1])
-                   or _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1]))
+        # A centre farther from the other's centre than its radius cannot be inside it.
+        d2 = (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2
+        deep[k] = ((d2 <= radius[b] ** 2 and _inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
+                   or (d2 <= radius[a] ** 2 and _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
 
 
 @parallel_kernel
@@ -306,22 +320,23 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_
             nx, ny, C = dx / dist, dy / dist, -dist
         w0, w1 = (1.0 - t) * we, t * we
         W = wp + (1.0 - t) * w0 + t * w1
-        # Normal push: λ = -C / W along n.
-        _apply(pos, p, e0, e1, wp, w0, w1, -C / W * nx, -C / W * ny)
         contact_depth[p] += -C
-        # Friction on the relative slip of p against q since the substep began.
+        # Friction on the relative slip r of p against q since the substep began. The normal
+        # push changes r by -C n only, so r's tangential part t_r can be read before it, and
+        # push and friction go in one move: Δ = (-C n - cut t_r) / W (one dependent chain of
+        # square roots and divisions per contact instead of two: this loop is sequential).
         rx = (pos[p, 0] - prev[p, 0]) - (1.0 - t) * (pos[e0, 0] - prev[e0, 0]) - t * (pos[e1, 0] - prev[e1, 0])
         ry = (pos[p, 1] - prev[p, 1]) - (1.0 - t) * (pos[e0, 1] - prev[e0, 1]) - t * (pos[e1, 1] - prev[e1, 1])
         rn = rx * nx + ry * ny
         tx, ty = rx - rn * nx, ry - rn * ny
         slip = math.sqrt(tx * tx + ty * ty)
-        if slip == 0.0:
-            continue
-        mu_s = math.sqrt(material[a, 0] * material[blob, 0])
-        mu_k = math.sqrt(material[a, 1] * material[blob, 1])
-        # Static: undo the whole slip; kinetic: cut it by μ_k times this push (|f_t| <= μ |f_n|).
-        cut = 1.0 if slip <= mu_s * contact_depth[p] else min(-mu_k * C / slip, 1.0)
-        _apply(pos, p, e0, e1, wp, w0, w1, -cut / W * tx, -cut / W * ty)
+        cut = 0.0
+        if slip > 0.0:
+            mu_s = math.sqrt(material[a, 0] * material[blob, 0])
+            mu_k = math.sqrt(material[a, 1] * material[blob, 1])
+            # Static: undo the whole slip; kinetic: cut it by μ_k times this push (|f_t| <= μ |f_n|).
+            cut = 1.0 if slip <= mu_s * contact_depth[p] else min(-mu_k * C / slip, 1.0)
+        _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
 
 
 @inline_kernel
@@ -339,7 +354,7 @@ def detect_blob_contacts(state, model, params):
     """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
     _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
     deep = np.empty(len(state.pairs), dtype=np.bool_)
-    _deep_pairs(state.pos, model.offsets, state.pairs, state.center, deep)
+    _deep_pairs(state.pos, model.offsets, state.pairs, state.center, state.radius, deep)
     for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
         _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
                        state.center, state.radius)
