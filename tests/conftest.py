@@ -15,7 +15,7 @@ REST_CREEP = 1e-3  # m: centre-of-mass travel of a resting blob over 2 s
 FREE_FALL_ROUNDOFF = 1e-10  # m: free-fall centre of mass vs the discrete formula, after 240 substeps
 MIRROR = 1e-2  # m: head-on mirror symmetry (Gauss-Seidel visits vertices in ring order, not mirrored)
 BLOB_PENETRATION = 2e-3  # m: deepest vertex inside another blob in a settled pile (1% of r = 0.2 m)
-STACK_FLICKER = 1e-2  # m/s: regression guard on a settled stack's centre speeds (measured peak 8.5e-3;
+STACK_FLICKER = 1e-2  # m/s: regression guard on a settled stack's centre speeds (measured peak 8.4e-3;
 #   not rest: contact flicker under load, see README "Known limits")
 LOADED_AREA = 0.03  # relative area error of a light blob under 150× heavier ones, after impact
 GOLDEN_ATOL = 1e-9  # m: fresh runs vs the stored golden trajectories (same versions: bit-identical)
