@@ -49,6 +49,7 @@ import numpy as np
 from .jit import inline_kernel, kernel, parallel_kernel
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
+NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
 
 
 @parallel_kernel
@@ -231,6 +232,10 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
         d2 = np.empty(longest)  # per edge of the partner: squared distance, t, normal opposes
         t = np.empty(longest)
         opposes = np.empty(longest, np.bool_)
+        # d2 >= 0, and the bit patterns of non-negative doubles order as integers do: the
+        # minima below are integer minima over contiguous arrays, which vectorize.
+        bits = d2.view(np.int64)
+        opposing_bits = np.empty(longest, np.int64)  # bits, or NO_EDGE where the normal does not oppose
         oa, ea = offsets[A], offsets[A + 1]
         for i in range(oa, ea):
             c_edge[i] = -1
@@ -261,25 +266,28 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
                     t[m] = min(max((rx * ex[m] + ry * ey[m]) * inv_len2[m], 0.0), 1.0)
                     d2[m] = (t[m] * ex[m] - rx) ** 2 + (t[m] * ey[m] - ry) ** 2
                     opposes[m] = orient[B] * (ey[m] * vnx - ex[m] * vny) < 0.0
+                    opposing_bits[m] = bits[m] if opposes[m] else NO_EDGE
                 if crossings % 2 == 0:  # outside B
                     continue
-                # Pass 2: the nearest edge, and the nearest whose normal opposes p's. Ties go
-                # to the first in ring order from the closing edge: n - 1, 0, 1, ..., n - 2.
-                best_opp = best_any = math.inf
-                m_opp = m_any = -1
-                for q in range(n):
-                    m = q - 1 if q > 0 else n - 1
-                    if d2[m] < best_any:
-                        best_any, m_any = d2[m], m
-                    if d2[m] < best_opp and opposes[m]:
-                        best_opp, m_opp = d2[m], m
-                if m_any < 0:
+                # Pass 2: the least squared distance over all edges and over the opposing ones;
+                # the contact is the first edge with that distance (opposing, if any edge is)
+                # in ring order from the closing edge: n - 1, 0, 1, ..., n - 2.
+                least = least_opposing = NO_EDGE
+                for m in range(n):
+                    least = min(least, bits[m])
+                    least_opposing = min(least_opposing, opposing_bits[m])
+                if least == NO_EDGE:
                     continue
-                if m_opp < 0:
-                    m_opp, best_opp = m_any, best_any
+                any_opposing = least_opposing != NO_EDGE
+                if not any_opposing:
+                    least_opposing = least
+                m = n - 1
+                while bits[m] != least_opposing or (any_opposing and not opposes[m]):
+                    m = m + 1 if m < n - 1 else 0
+                best = d2[m]
                 # keep the deepest contact of this vertex (its depth: distance to the edge)
-                if c_edge[i] < 0 or best_opp > c_depth2[i]:
-                    c_edge[i], c_t[i], c_depth2[i] = ob + m_opp, t[m_opp], best_opp
+                if c_edge[i] < 0 or best > c_depth2[i]:
+                    c_edge[i], c_t[i], c_depth2[i] = ob + m, t[m], best
 
 
 @kernel
