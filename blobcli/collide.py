@@ -26,6 +26,11 @@ Macklin et al. 2014, but only where it is needed: applied to every contact it pu
 into a pile of equal blobs and blew it apart). Side by side, equal masses, or zero gravity: f or
 the ratio is 1, and momentum is exact.
 
+Resolution order: Gauss-Seidel, each contact against the positions its predecessors left.
+Scenes of 64 blobs or more are cut into vertical strips (see _resolve), and contacts that
+share no blob run in parallel; smaller scenes keep one strip, so their contacts go in vertex
+order. Either way the order is set by the scene, not by the number of threads.
+
 Deep overlap (a blob driven far into another, or spawned overlapping): when either centre is
 inside the other polygon, vertex–edge pushes have no sensible "nearest" side. Then, as the
 seed author's own code does, a line perpendicular to c_B - c_A splits the two, placed at
@@ -50,6 +55,8 @@ from .jit import inline_kernel, kernel, parallel_kernel
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
+BLOBS_PER_STRIP = 32  # the resolution cuts a scene into B // 32 vertical strips (at least 1) ...
+MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thread count
 
 
 @parallel_kernel
@@ -142,6 +149,7 @@ def find_blob_pairs(state, model, params):
     _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
     state.pairs = _find_pairs(state.center, state.radius)
     state.partners = _partners(state.pairs, model.blob_count)
+    state.strips = _strips(state.center)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
 
 
@@ -206,6 +214,30 @@ def _partners(pairs, blob_count):
             pair_of[fill[a]] = k
             fill[a] += 1
     return start, partner, pair_of
+
+
+@kernel
+def _strips(center):
+    """Blobs cut into vertical strips of equal width by centre x: each blob's strip, and each
+    strip's blobs in index order (CSR: start, blobs)."""
+    B = center.shape[0]
+    count = max(1, min(MAX_STRIPS, B // BLOBS_PER_STRIP))
+    x0 = center[:, 0].min()
+    width = (center[:, 0].max() - x0) / count
+    strip_of = np.zeros(B, np.int64)
+    start = np.zeros(count + 1, np.int64)
+    for b in range(B):
+        if width > 0.0:
+            strip_of[b] = min(int((center[b, 0] - x0) / width), count - 1)
+        start[strip_of[b] + 1] += 1
+    for k in range(count):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    blobs = np.empty(B, np.int64)
+    for b in range(B):
+        blobs[fill[strip_of[b]]] = b
+        fill[strip_of[b]] += 1
+    return strip_of, start, blobs
 
 
 @parallel_kernel
@@ -290,61 +322,105 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
                     c_edge[i], c_t[i], c_depth2[i] = ob + m, t[m], best
 
 
-@kernel
+@parallel_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
-             center, radius, up_x, up_y):
-    for p in range(pos.shape[0]):  # Gauss-Seidel, in vertex order
-        e0, t = c_edge[p], c_t[p]
-        if e0 < 0:
-            continue
-        blob = blob_of[e0]
-        a = blob_of[p]
-        wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
-        # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
-        # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
-        f = ((center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y) / (radius[a] + radius[blob])
-        if f > 0.0 and we > wp:  # the vertex's blob is above and heavier
-            we *= (wp / we) ** min(2.0 * f, 2.0)
-        elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
-            wp *= (we / wp) ** min(-2.0 * f, 2.0)
-        e1 = e0 + 1 if e0 + 1 < offsets[blob + 1] else offsets[blob]
-        ex, ey = pos[e1, 0] - pos[e0, 0], pos[e1, 1] - pos[e0, 1]
-        length = math.sqrt(ex * ex + ey * ey)
-        if length == 0.0:
-            continue
-        nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
-        qx, qy = pos[e0, 0] + t * ex, pos[e0, 1] + t * ey
-        C = (pos[p, 0] - qx) * nx + (pos[p, 1] - qy) * ny
-        if C >= 0.0:
-            continue
-        if t == 0.0 or t == 1.0:
-            # Nearest point is a corner, equally near to both its edges: push toward it,
-            # along q - p. (Along the normal of whichever edge came first, every push was
-            # turned the same way round the ring, and stacked blobs slid off each other.)
-            dx, dy = qx - pos[p, 0], qy - pos[p, 1]
-            dist = math.sqrt(dx * dx + dy * dy)
-            if dist == 0.0:
-                continue
-            nx, ny, C = dx / dist, dy / dist, -dist
-        w0, w1 = (1.0 - t) * we, t * we
-        W = wp + (1.0 - t) * w0 + t * w1
-        contact_depth[p] += -C
-        # Friction on the relative slip r of p against q since the substep began. The normal
-        # push changes r by -C n only, so r's tangential part t_r can be read before it, and
-        # push and friction go in one move: Δ = (-C n - cut t_r) / W (one dependent chain of
-        # square roots and divisions per contact instead of two: this loop is sequential).
-        rx = (pos[p, 0] - prev[p, 0]) - (1.0 - t) * (pos[e0, 0] - prev[e0, 0]) - t * (pos[e1, 0] - prev[e1, 0])
-        ry = (pos[p, 1] - prev[p, 1]) - (1.0 - t) * (pos[e0, 1] - prev[e0, 1]) - t * (pos[e1, 1] - prev[e1, 1])
-        rn = rx * nx + ry * ny
-        tx, ty = rx - rn * nx, ry - rn * ny
-        slip = math.sqrt(tx * tx + ty * ty)
-        cut = 0.0
-        if slip > 0.0:
-            mu_s = math.sqrt(material[a, 0] * material[blob, 0])
-            mu_k = math.sqrt(material[a, 1] * material[blob, 1])
-            # Static: undo the whole slip; kinetic: cut it by μ_k times this push (|f_t| <= μ |f_n|).
-            cut = 1.0 if slip <= mu_s * contact_depth[p] else min(-mu_k * C / slip, 1.0)
-        _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
+             center, radius, up_x, up_y, strip_of, strip_start, strip_blobs):
+    """Gauss-Seidel over the contacts, in parallel where they share no blob.
+
+    A contact moves only its own two blobs, so contacts within different strips are
+    independent, and so are contacts across the strip boundaries s|s+1 and s+2|s+3. Order:
+    (1) contacts across strips two or more apart (a strip narrower than a pair's reach;
+    rare), in vertex order; (2) contacts across neighbouring strips s, s+1, even s in
+    parallel, then odd s; (3) contacts within a strip, even strips in parallel, then odd ones,
+    each in blob, then vertex order. The contacts within strips, nearly all of them, go last:
+    with the boundary contacts last instead, the deepest overlap in the settled `pile` tripled (dev: median 0.47 mm
+    against 0.14 mm over seconds 6-10). The strips are set by the scene (see _strips), so the
+    result is the same for any number of threads."""
+    strips = strip_start.shape[0] - 1
+    for p in range(pos.shape[0]):
+        if c_edge[p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[p]]]) >= 2:
+            _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                             contact_depth, center, radius, up_x, up_y)
+    for parity in range(2):
+        for q in numba.prange((strips - parity) // 2):
+            s = parity + 2 * q
+            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs)
+    for parity in range(2):
+        for q in numba.prange((strips - parity + 1) // 2):
+            s = parity + 2 * q
+            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs)
+
+
+@inline_kernel
+def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                     contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs):
+    """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
+    those of a vertex in `other` with an edge in s."""
+    for side in range(1 if other == s else 2):
+        here, there = (s, other) if side == 0 else (other, s)
+        for k in range(strip_start[here], strip_start[here + 1]):
+            a = strip_blobs[k]
+            for p in range(offsets[a], offsets[a + 1]):
+                if c_edge[p] >= 0 and strip_of[blob_of[c_edge[p]]] == there:
+                    _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                                     contact_depth, center, radius, up_x, up_y)
+
+
+@inline_kernel
+def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
+                     center, radius, up_x, up_y):
+    """Push vertex p out of its contact edge, with friction."""
+    e0, t = c_edge[p], c_t[p]
+    blob = blob_of[e0]
+    a = blob_of[p]
+    wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
+    # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
+    # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
+    f = ((center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y) / (radius[a] + radius[blob])
+    if f > 0.0 and we > wp:  # the vertex's blob is above and heavier
+        we *= (wp / we) ** min(2.0 * f, 2.0)
+    elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
+        wp *= (we / wp) ** min(-2.0 * f, 2.0)
+    e1 = e0 + 1 if e0 + 1 < offsets[blob + 1] else offsets[blob]
+    ex, ey = pos[e1, 0] - pos[e0, 0], pos[e1, 1] - pos[e0, 1]
+    length = math.sqrt(ex * ex + ey * ey)
+    if length == 0.0:
+        return
+    nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
+    qx, qy = pos[e0, 0] + t * ex, pos[e0, 1] + t * ey
+    C = (pos[p, 0] - qx) * nx + (pos[p, 1] - qy) * ny
+    if C >= 0.0:
+        return
+    if t == 0.0 or t == 1.0:
+        # Nearest point is a corner, equally near to both its edges: push toward it,
+        # along q - p. (Along the normal of whichever edge came first, every push was
+        # turned the same way round the ring, and stacked blobs slid off each other.)
+        dx, dy = qx - pos[p, 0], qy - pos[p, 1]
+        dist = math.sqrt(dx * dx + dy * dy)
+        if dist == 0.0:
+            return
+        nx, ny, C = dx / dist, dy / dist, -dist
+    w0, w1 = (1.0 - t) * we, t * we
+    W = wp + (1.0 - t) * w0 + t * w1
+    contact_depth[p] += -C
+    # Friction on the relative slip r of p against q since the substep began. The normal
+    # push changes r by -C n only, so r's tangential part t_r can be read before it, and
+    # push and friction go in one move: Δ = (-C n - cut t_r) / W (one dependent chain of
+    # square roots and divisions per contact instead of two: this loop is sequential).
+    rx = (pos[p, 0] - prev[p, 0]) - (1.0 - t) * (pos[e0, 0] - prev[e0, 0]) - t * (pos[e1, 0] - prev[e1, 0])
+    ry = (pos[p, 1] - prev[p, 1]) - (1.0 - t) * (pos[e0, 1] - prev[e0, 1]) - t * (pos[e1, 1] - prev[e1, 1])
+    rn = rx * nx + ry * ny
+    tx, ty = rx - rn * nx, ry - rn * ny
+    slip = math.sqrt(tx * tx + ty * ty)
+    cut = 0.0
+    if slip > 0.0:
+        mu_s = math.sqrt(material[a, 0] * material[blob, 0])
+        mu_k = math.sqrt(material[a, 1] * material[blob, 1])
+        # Static: undo the whole slip; kinetic: cut it by μ_k times this push (|f_t| <= μ |f_n|).
+        cut = 1.0 if slip <= mu_s * contact_depth[p] else min(-mu_k * C / slip, 1.0)
+    _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
 
 
 @inline_kernel
@@ -371,11 +447,12 @@ def detect_blob_contacts(state, model, params):
 
 
 def resolve_blob_contacts(state, model, params):
-    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, vertex order)."""
+    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
     _resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
-             state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1])
+             state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1],
+             *state.strips)
 
 
 def collide_blobs(state, model, params):

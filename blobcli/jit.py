@@ -11,6 +11,10 @@ import numba
 
 kernel = numba.njit(cache=True, error_model="numpy", nogil=True)
 inline_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
-# Loops over independent blobs (each writes only its own vertices) may run on all cores:
-# their results do not depend on the number of threads.
+# Every stage whose outer loop has independent iterations (blobs, or vertices, each writing
+# only its own) loops with numba.prange under `parallel_kernel`: results do not depend on the
+# number of threads, and one thread still gains. (dev: the perimeter sweep at 1,000 blobs took
+# 16.7 ns per edge as a plain kernel, 7.1 ns as a parallel kernel on one thread and 3.7 ns on
+# two; numba compiles a prange body as a separate function, and it compiled that one better.)
+# A parallel launch costs ~1.5 µs, which one-blob scenes can afford.
 parallel_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, parallel=True)

@@ -99,6 +99,7 @@ class State:
     edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m), 1/|edge|² (1/m²)
     pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
     partners: tuple  # each blob's partners, CSR: (start (B+1,), partner (2P,), pair index (2P,))
+    strips: tuple  # blobs by vertical strip, for the parallel resolution: (strip_of (B,), start (S+1,), blobs (B,))
     c_edge: np.ndarray  # (N,) int64, vertex i's contact: the edge (by its first vertex) it must leave, or -1 ...
     c_t: np.ndarray  # (N,) ... the barycentric position on it ...
     c_depth2: np.ndarray  # (N,) m², ... and the squared depth (the deepest contact wins)
@@ -176,7 +177,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
                   area_lam=np.zeros(len(counts)), spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), edges=np.zeros((5, n)),
-                  pairs=np.zeros((0, 2), dtype=np.int64), partners=(), c_edge=np.zeros(n, dtype=np.int64),
+                  pairs=np.zeros((0, 2), dtype=np.int64), partners=(), strips=(), c_edge=np.zeros(n, dtype=np.int64),
                   c_t=np.zeros(n), c_depth2=np.zeros(n), blob_contact_depth=np.zeros(n))
     return model, state
 

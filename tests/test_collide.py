@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 import blobcli.pipeline
 from blobcli import blob_measures, build, build_params, load_scene, step
-from blobcli.collide import _find_pairs, find_blob_pairs
+from blobcli.collide import BLOBS_PER_STRIP, MAX_STRIPS, _find_pairs, _strips, find_blob_pairs
 from conftest import (BLOB_PENETRATION, LOADED_AREA, MIRROR, MOMENTUM_ROUNDOFF, REST_CREEP, STACK_FLICKER,
                       depth_inside_polygon, momentum, scene, self_intersects, simulate_steps)
 
@@ -168,3 +168,18 @@ def test_pile_runs_are_bit_identical():
     a = settle("pile", 60)[1].pos
     b = settle("pile", 60)[1].pos
     assert a.tobytes() == b.tobytes()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 700))
+def test_resolution_strips_partition_the_blobs_by_x(seed, blobs):
+    center = np.random.default_rng(seed).uniform(-5.0, 5.0, (blobs, 2))
+    strip_of, start, members = _strips(center)
+    assert len(start) - 1 == max(1, min(MAX_STRIPS, blobs // BLOBS_PER_STRIP))
+    assert sorted(members) == list(range(blobs))  # every blob in exactly one strip ...
+    for s in range(len(start) - 1):
+        inside = members[start[s]:start[s + 1]]
+        assert list(inside) == sorted(inside)  # ... in index order
+        assert (strip_of[inside] == s).all()
+    by_x = np.argsort(center[:, 0], kind="stable")
+    assert (np.diff(strip_of[by_x]) >= 0).all()  # strips follow x
