@@ -32,7 +32,7 @@ vertex of the parabola, moves the blob to the nearest area it can reach.
 
 import numba
 
-from .jit import inline_kernel, kernel, parallel_kernel
+from .jit import inline_kernel, kernel, stage_kernel
 from .perimeter import solve_distance
 from .scene import METHODS
 
@@ -55,7 +55,7 @@ def _gradient_step(pos, inv_mass, o, e, scale):
         xl, yl = sx, sy
 
 
-@parallel_kernel
+@stage_kernel
 def _area_kot(pos, inv_mass, offsets, target_area):
     for blob in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[blob], offsets[blob + 1]
@@ -91,7 +91,7 @@ def _area_kot(pos, inv_mass, offsets, target_area):
 
 def area_kot(state, model, params, h):
     """Exact area projection (see the module docstring)."""
-    _area_kot(state.pos, model.inv_mass, model.offsets, model.target_area)
+    _area_kot[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area)
 
 
 @kernel
@@ -107,7 +107,7 @@ def _area_and_gradient_norm(pos, inv_mass, o, e):
     return 0.5 * twice_area, norm
 
 
-@parallel_kernel
+@stage_kernel
 def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
     # XPBD (Macklin et al. 2016) for C = A - A₀ with ∇_i C = ∇_i A:
     #   Δλ = (-C - α̃ λ) / (Σ w_i |∇_i A|² + α̃),  x_i += w_i ∇_i A Δλ,  α̃ = α / h².
@@ -123,7 +123,7 @@ def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
         _gradient_step(pos, inv_mass, o, e, dlam)
 
 
-@parallel_kernel
+@stage_kernel
 def _area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
     # Ideal gas (Matyka 2004): P = nRT / A, here P = P₀ A₀ / A. The pressure on an edge is
     # P |e| along its outward normal, half to each end; summed at vertex i that is exactly
@@ -150,12 +150,12 @@ def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
 
 def area_xpbd(state, model, params, h):
     """The area as a compliant XPBD constraint, one linearized step per iteration."""
-    _area_xpbd(state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance, state.area_lam, h)
+    _area_xpbd[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance, state.area_lam, h)
 
 
 def area_gas(state, model, params, h):
     """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
-    _area_gas(state.pos, model.inv_mass, model.offsets, model.target_area, model.gas_pressure,
+    _area_gas[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.gas_pressure,
               h * h / params.iterations)
 
 

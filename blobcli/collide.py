@@ -51,7 +51,7 @@ import math
 import numba
 import numpy as np
 
-from .jit import inline_kernel, kernel, parallel_kernel
+from .jit import inline_kernel, kernel, stage_kernel
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
@@ -59,7 +59,7 @@ BLOBS_PER_STRIP = 32  # the resolution cuts a scene into B // 32 vertical strips
 MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thread count
 
 
-@parallel_kernel
+@stage_kernel
 def _blob_bounds(pos, offsets, center, radius, edges):
     for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
@@ -83,7 +83,7 @@ def _blob_bounds(pos, offsets, center, radius, edges):
         center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
 
 
-@parallel_kernel
+@stage_kernel
 def _find_pairs(center, radius):
     B = center.shape[0]
     r_max = radius.max()
@@ -146,8 +146,8 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 
 def find_blob_pairs(state, model, params):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
-    state.pairs = _find_pairs(state.center, state.radius)
+    _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
+    state.pairs = _find_pairs[model.parallel](state.center, state.radius)
     state.partners = _partners(state.pairs, model.blob_count)
     state.strips = _strips(state.center)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
@@ -240,7 +240,7 @@ def _strips(center):
     return strip_of, start, blobs
 
 
-@parallel_kernel
+@stage_kernel
 def _deep_pairs(pos, offsets, pairs, center, radius, deep):
     """deep[k]: either centre of pair k lies inside the other blob."""
     for k in numba.prange(pairs.shape[0]):
@@ -251,7 +251,7 @@ def _deep_pairs(pos, offsets, pairs, center, radius, deep):
                    or (d2 <= radius[a] ** 2 and _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
 
 
-@parallel_kernel
+@stage_kernel
 def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of, deep, c_edge, c_t, c_depth2):
     """For every vertex: the edge it must leave (c_edge = -1: none), from its deepest contact.
 
@@ -322,7 +322,7 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
                     c_edge[i], c_t[i], c_depth2[i] = ob + m, t[m], best
 
 
-@parallel_kernel
+@stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
@@ -436,13 +436,13 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 def detect_blob_contacts(state, model, params):
     """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds(state.pos, model.offsets, state.center, state.radius, state.edges)
+    _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
     deep = np.empty(len(state.pairs), dtype=np.bool_)
-    _deep_pairs(state.pos, model.offsets, state.pairs, state.center, state.radius, deep)
+    _deep_pairs[model.parallel](state.pos, model.offsets, state.pairs, state.center, state.radius, deep)
     for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
         _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
                        state.center, state.radius)
-    _detect(state.pos, model.offsets, model.orient, state.center, state.radius, state.edges, *state.partners, deep,
+    _detect[model.parallel](state.pos, model.offsets, model.orient, state.center, state.radius, state.edges, *state.partners, deep,
             state.c_edge, state.c_t, state.c_depth2)
 
 
@@ -450,7 +450,7 @@ def resolve_blob_contacts(state, model, params):
     """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
-    _resolve(state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
+    _resolve[model.parallel](state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
              state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1],
              *state.strips)
 

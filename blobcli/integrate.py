@@ -9,12 +9,12 @@ import math
 
 import numba
 
-from .jit import parallel_kernel
+from .jit import stage_kernel
 
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
 
 
-@parallel_kernel
+@stage_kernel
 def _damp_relative(vel, inv_mass, offsets, factor):
     for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
@@ -41,10 +41,10 @@ def damp_relative(state, model, params, h):
     damped. Damping spin as well gives the blob rolling resistance, like a viscous
     filling, and it settles to rest (below 1e-4 m/s within seconds).
     """
-    _damp_relative(state.vel, model.inv_mass, model.offsets, math.exp(-params.damping * h))
+    _damp_relative[model.parallel](state.vel, model.inv_mass, model.offsets, math.exp(-params.damping * h))
 
 
-@parallel_kernel
+@stage_kernel
 def _predict(pos, prev, vel, lam, contact_depth, gx, gy, h):
     for i in numba.prange(pos.shape[0]):
         prev[i, 0] = pos[i, 0]
@@ -59,13 +59,13 @@ def _predict(pos, prev, vel, lam, contact_depth, gx, gy, h):
 
 def predict(state, model, params, h):
     """x_prev <- x; v += g h; x += v h; clear this substep's multipliers and contacts."""
-    _predict(state.pos, state.prev, state.vel, state.lam, state.contact_depth,
+    _predict[model.parallel](state.pos, state.prev, state.vel, state.lam, state.contact_depth,
              params.gravity[0], params.gravity[1], h)
     state.area_lam[:] = 0.0  # the xpbd and springs methods' multipliers, per substep too
     state.spring_lam[:] = 0.0
 
 
-@parallel_kernel
+@stage_kernel
 def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_material, h):
     inv_h = 1.0 / h
     for i in numba.prange(pos.shape[0]):
@@ -93,11 +93,11 @@ def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_ma
 
 def update_velocities(state, model, params, h):
     """v = (x - x_prev) / h, then kinetic Coulomb friction at static contacts."""
-    _update_velocities(state.pos, state.prev, state.vel, state.contact_normal, state.contact_depth,
+    _update_velocities[model.parallel](state.pos, state.prev, state.vel, state.contact_normal, state.contact_depth,
                        state.contact_material, h)
 
 
-@parallel_kernel
+@stage_kernel
 def _restitution(vel, inv_mass, offsets, contact_normal, contact_depth, contact_material,
                  impact_speed, rest_speed):
     for b in numba.prange(offsets.shape[0] - 1):
@@ -145,6 +145,6 @@ def restitution(state, model, params, h):
     REST_SPEED_FACTOR |g| h never bounce, so resting contacts do not jitter.
     """
     rest_speed = REST_SPEED_FACTOR * math.hypot(params.gravity[0], params.gravity[1]) * h
-    _restitution(state.vel, model.inv_mass, model.offsets, state.contact_normal, state.contact_depth,
+    _restitution[model.parallel](state.vel, model.inv_mass, model.offsets, state.contact_normal, state.contact_depth,
                  state.contact_material, state.impact_speed, rest_speed)
 

@@ -14,6 +14,9 @@ import numpy as np
 
 from .scene import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
 
+PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
+
+
 @dataclass(frozen=True)
 class Params:
     """Resolved time stepping and world settings."""
@@ -69,6 +72,11 @@ class Model:
     def collides(self) -> bool:
         """Blob–blob collision stages run only with more than one blob."""
         return self.blob_count > 1
+
+    @property
+    def parallel(self) -> bool:
+        """Whether the stages run their parallel builds (jit.stage_kernel): from PARALLEL_BLOBS."""
+        return self.blob_count >= PARALLEL_BLOBS
 
     @property
     def blob_count(self) -> int:

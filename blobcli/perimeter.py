@@ -11,7 +11,7 @@ import math
 
 import numba
 
-from .jit import inline_kernel, parallel_kernel
+from .jit import inline_kernel, stage_kernel
 
 
 @inline_kernel
@@ -31,7 +31,7 @@ def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
     pos[j, 1] += inv_mass[j] * dlam * ny
 
 
-@parallel_kernel
+@stage_kernel
 def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
     # Red-black order: even edges, then odd edges, then (odd rings only) the closing edge.
     # Within a colour no two edges share a vertex, so the order inside it does not matter
@@ -54,4 +54,4 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
 
 
 def solve_perimeter(state, model, params, h):
-    _solve_perimeter(state.pos, model.inv_mass, model.offsets, model.rest_length, model.compliance, state.lam, h)
+    _solve_perimeter[model.parallel](state.pos, model.inv_mass, model.offsets, model.rest_length, model.compliance, state.lam, h)

@@ -18,7 +18,7 @@ import math
 
 import numba
 
-from .jit import inline_kernel, parallel_kernel
+from .jit import inline_kernel, stage_kernel
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
 
@@ -67,7 +67,7 @@ def _inside_shape(geom, start, stop, x, y):
     return inside
 
 
-@parallel_kernel
+@stage_kernel
 def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                    contact_normal, contact_depth, contact_material):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
@@ -83,7 +83,7 @@ def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape
                                               contact_depth, contact_material)
 
 
-@parallel_kernel
+@stage_kernel
 def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
@@ -123,7 +123,7 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
         pos[i, 0], pos[i, 1] = x, y
 
 
-@parallel_kernel
+@stage_kernel
 def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                     contact_normal, contact_depth, contact_material):
     for i in numba.prange(pos.shape[0]):
@@ -167,7 +167,7 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
         pos[i, 0], pos[i, 1] = x, y
 
 
-@parallel_kernel
+@stage_kernel
 def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
@@ -242,6 +242,6 @@ COLLIDERS = {
 
 def collide_static(state, model, statics):
     """Run the collider kernel of one StaticSet (all shapes of one kind)."""
-    COLLIDERS[statics.kind](state.pos, state.prev, model.blob_of, model.material, statics.geom,
+    COLLIDERS[statics.kind][model.parallel](state.pos, state.prev, model.blob_of, model.material, statics.geom,
                             statics.shape_offsets, statics.material, statics.aabb,
                             state.contact_normal, state.contact_depth, state.contact_material)

@@ -6,6 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import blobcli.model
 import blobcli.pipeline
 from blobcli import blob_measures, build, build_params, load_scene, step
 from blobcli.collide import BLOBS_PER_STRIP, MAX_STRIPS, _find_pairs, _strips, find_blob_pairs
@@ -141,7 +142,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
     rng = np.random.default_rng(seed)
     center = rng.uniform(0, spread, (blobs, 2))
     radius = rng.uniform(0.1, 1.0, blobs)
-    pairs = _find_pairs(center, radius)
+    pairs = _find_pairs[True](center, radius)
     from blobcli.collide import BROAD_MARGIN
     expected = set()
     for a in range(blobs):
@@ -151,7 +152,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
                 expected.add((a, b))
     assert set(map(tuple, pairs.tolist())) == expected
     assert len(pairs) == len(expected)
-    np.testing.assert_array_equal(pairs, _find_pairs(center, radius))
+    np.testing.assert_array_equal(pairs, _find_pairs[False](center, radius))  # serial build: same order
 
 
 def test_collision_stages_do_not_run_with_one_blob(monkeypatch):
@@ -168,6 +169,15 @@ def test_pile_runs_are_bit_identical():
     a = settle("pile", 60)[1].pos
     b = settle("pile", 60)[1].pos
     assert a.tobytes() == b.tobytes()
+
+
+def test_serial_and_parallel_stage_builds_give_the_same_bits(monkeypatch):
+    parallel = settle("pile", 60)  # 120 blobs: the parallel builds
+    assert parallel[0].parallel
+    monkeypatch.setattr(blobcli.model, "PARALLEL_BLOBS", 10**6)
+    serial = settle("pile", 60)
+    assert not serial[0].parallel
+    assert serial[1].pos.tobytes() == parallel[1].pos.tobytes()
 
 
 @settings(max_examples=30, deadline=None)
