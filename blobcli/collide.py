@@ -95,20 +95,10 @@ def _find_pairs(center, radius):
         cell *= 2.0
         nx = int((center[:, 0].max() - x0) / cell) + 1
         ny = int((center[:, 1].max() - y0) / cell) + 1
-    # Counting sort of the blobs by cell (stable: within a cell, by blob index).
     cell_of = np.empty(B, np.int64)
-    start = np.zeros(nx * ny + 1, np.int64)
     for b in range(B):
-        c = int((center[b, 1] - y0) / cell) * nx + int((center[b, 0] - x0) / cell)
-        cell_of[b] = c
-        start[c + 1] += 1
-    for c in range(nx * ny):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(B, np.int64)
-    for b in range(B):
-        order[fill[cell_of[b]]] = b
-        fill[cell_of[b]] += 1
+        cell_of[b] = int((center[b, 1] - y0) / cell) * nx + int((center[b, 0] - x0) / cell)
+    start, order = _bucket(cell_of, nx * ny)
     # Two passes over each blob's 3 × 3 neighbourhood, in parallel over blobs: count, then
     # fill from each blob's own offset, so the order is the same for any thread count.
     first = np.zeros(B + 1, np.int64)
@@ -225,19 +215,28 @@ def _strips(center):
     x0 = center[:, 0].min()
     width = (center[:, 0].max() - x0) / count
     strip_of = np.zeros(B, np.int64)
-    start = np.zeros(count + 1, np.int64)
-    for b in range(B):
-        if width > 0.0:
+    if width > 0.0:
+        for b in range(B):
             strip_of[b] = min(int((center[b, 0] - x0) / width), count - 1)
-        start[strip_of[b] + 1] += 1
-    for k in range(count):
+    start, blobs = _bucket(strip_of, count)
+    return strip_of, start, blobs
+
+
+@inline_kernel
+def _bucket(key, buckets):
+    """Counting sort of 0..len(key)-1 by key (stable: within a bucket, by index). Returns
+    (start, order): bucket k holds order[start[k]:start[k + 1]]."""
+    start = np.zeros(buckets + 1, np.int64)
+    for b in range(key.shape[0]):
+        start[key[b] + 1] += 1
+    for k in range(buckets):
         start[k + 1] += start[k]
     fill = start[:-1].copy()
-    blobs = np.empty(B, np.int64)
-    for b in range(B):
-        blobs[fill[strip_of[b]]] = b
-        fill[strip_of[b]] += 1
-    return strip_of, start, blobs
+    order = np.empty(key.shape[0], np.int64)
+    for b in range(key.shape[0]):
+        order[fill[key[b]]] = b
+        fill[key[b]] += 1
+    return start, order
 
 
 @stage_kernel
