@@ -150,13 +150,14 @@ def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
 
 def area_xpbd(state, model, params, h):
     """The area as a compliant XPBD constraint, one linearized step per iteration."""
-    _area_xpbd[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance, state.area_lam, h)
+    _area_xpbd[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance,
+                               state.area_lam, h)
 
 
 def area_gas(state, model, params, h):
     """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
     _area_gas[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.gas_pressure,
-              h * h / params.iterations)
+                              h * h / params.iterations)
 
 
 def area_springs(state, model, params, h):

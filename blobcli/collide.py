@@ -277,7 +277,8 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
             ob, eb = offsets[B], offsets[B + 1]
             n = eb - ob
             cx, cy, r2 = center[B, 0], center[B, 1], radius[B] * radius[B]
-            ax, ay, ex, ey, inv_len2 = edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb], edges[4, ob:eb]
+            ax, ay, ex, ey, inv_len2 = (edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb],
+                                        edges[4, ob:eb])
             for i in range(oa, ea):
                 x, y = pos[i, 0], pos[i, 1]
                 if (x - cx) ** 2 + (y - cy) ** 2 > r2:  # outside B's bounding circle
@@ -441,17 +442,17 @@ def detect_blob_contacts(state, model, params):
     for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
         _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
                        state.center, state.radius)
-    _detect[model.parallel](state.pos, model.offsets, model.orient, state.center, state.radius, state.edges, *state.partners, deep,
-            state.c_edge, state.c_t, state.c_depth2)
+    _detect[model.parallel](state.pos, model.offsets, model.orient, state.center, state.radius, state.edges,
+                            *state.partners, deep, state.c_edge, state.c_t, state.c_depth2)
 
 
 def resolve_blob_contacts(state, model, params):
     """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
-    _resolve[model.parallel](state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient, model.material,
-             state.c_edge, state.c_t, state.blob_contact_depth, state.center, state.radius, up[0], up[1],
-             *state.strips)
+    _resolve[model.parallel](state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient,
+                             model.material, state.c_edge, state.c_t, state.blob_contact_depth, state.center,
+                             state.radius, up[0], up[1], *state.strips)
 
 
 def collide_blobs(state, model, params):

@@ -60,7 +60,7 @@ def _predict(pos, prev, vel, lam, contact_depth, gx, gy, h):
 def predict(state, model, params, h):
     """x_prev <- x; v += g h; x += v h; clear this substep's multipliers and contacts."""
     _predict[model.parallel](state.pos, state.prev, state.vel, state.lam, state.contact_depth,
-             params.gravity[0], params.gravity[1], h)
+                             params.gravity[0], params.gravity[1], h)
     state.area_lam[:] = 0.0  # the xpbd and springs methods' multipliers, per substep too
     state.spring_lam[:] = 0.0
 
@@ -94,7 +94,7 @@ def _update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_ma
 def update_velocities(state, model, params, h):
     """v = (x - x_prev) / h, then kinetic Coulomb friction at static contacts."""
     _update_velocities[model.parallel](state.pos, state.prev, state.vel, state.contact_normal, state.contact_depth,
-                       state.contact_material, h)
+                                       state.contact_material, h)
 
 
 @stage_kernel
@@ -146,5 +146,5 @@ def restitution(state, model, params, h):
     """
     rest_speed = REST_SPEED_FACTOR * math.hypot(params.gravity[0], params.gravity[1]) * h
     _restitution[model.parallel](state.vel, model.inv_mass, model.offsets, state.contact_normal, state.contact_depth,
-                 state.contact_material, state.impact_speed, rest_speed)
+                                 state.contact_material, state.impact_speed, rest_speed)
 

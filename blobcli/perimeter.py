@@ -54,4 +54,5 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
 
 
 def solve_perimeter(state, model, params, h):
-    _solve_perimeter[model.parallel](state.pos, model.inv_mass, model.offsets, model.rest_length, model.compliance, state.lam, h)
+    _solve_perimeter[model.parallel](state.pos, model.inv_mass, model.offsets, model.rest_length, model.compliance,
+                                     state.lam, h)

@@ -243,5 +243,5 @@ COLLIDERS = {
 def collide_static(state, model, statics):
     """Run the collider kernel of one StaticSet (all shapes of one kind)."""
     COLLIDERS[statics.kind][model.parallel](state.pos, state.prev, model.blob_of, model.material, statics.geom,
-                            statics.shape_offsets, statics.material, statics.aabb,
-                            state.contact_normal, state.contact_depth, state.contact_material)
+                                            statics.shape_offsets, statics.material, statics.aabb,
+                                            state.contact_normal, state.contact_depth, state.contact_material)
