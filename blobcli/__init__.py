@@ -14,9 +14,9 @@ __version__ = "0.1.0"
 __all__ = ["load_scene", "parse_scene", "SceneError", "build", "build_params", "step", "simulate",
            "read_trajectory", "blob_measures", "__version__"]
 
-_HOMES = {"load_scene": "scene", "parse_scene": "scene", "SceneError": "scene", "build": "model",
-          "build_params": "model", "step": "pipeline", "simulate": "run", "read_trajectory": "h5md",
-          "blob_measures": "measure"}
+_HOMES = {"load_scene": "scene.schema", "parse_scene": "scene.schema", "SceneError": "scene.schema",
+          "build": "sim.model", "build_params": "sim.model", "step": "sim.pipeline", "simulate": "io.run",
+          "read_trajectory": "io.h5md", "blob_measures": "sim.measure"}
 
 
 def __getattr__(name):

@@ -40,7 +40,7 @@ _nonnegative_float = _number(allow_zero=True)
 
 def parser() -> argparse.ArgumentParser:
     from . import __version__
-    from .scene import METHODS
+    from .scene.schema import METHODS
     p = argparse.ArgumentParser(prog="blobsim", description="Batch simulator for 2D soft blobs.")
     p.add_argument("--version", action="version", version=f"blobsim {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -113,7 +113,7 @@ def _fail(problems) -> int:
 
 
 def cmd_run(args) -> int:
-    from .scene import SceneError, load_scene, with_overrides
+    from .scene.schema import SceneError, load_scene, with_overrides
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
@@ -121,8 +121,8 @@ def cmd_run(args) -> int:
     scene = with_overrides(scene, steps=args.steps, duration=args.duration, method=args.method)
     output = args.output
     if args.resume:
-        from .h5md import resume_problems
-        from .model import build_params
+        from .io.h5md import resume_problems
+        from .sim.model import build_params
         problems = resume_problems(args.resume, scene, build_params(scene))
         if problems:
             return _fail(problems)
@@ -131,7 +131,7 @@ def cmd_run(args) -> int:
     rerun = args.rerun if args.rerun is not None else scene.output.rerun
     if rerun == "":
         rerun = str(Path(output or scene.output_path).with_suffix(".rrd"))
-    from .run import simulate
+    from .io.run import simulate
     result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
     if result.message:
         print(f"blobsim: {result.message}", file=sys.stderr)
@@ -140,14 +140,14 @@ def cmd_run(args) -> int:
         # Written from the finished file, not during the run: rerun's encoder threads slowed
         # the numba kernels 7× on two cores. An interrupted run's file holds every frame up
         # to the stop, so its recording does too.
-        from .recording import replay
+        from .io.recording import replay
         frames = replay(result.path, rerun)
         print(f"blobsim: recorded {frames} frames into {rerun}")
     return result.exit_code
 
 
 def cmd_check(args) -> int:
-    from .scene import SceneError, load_scene, resolved_toml
+    from .scene.schema import SceneError, load_scene, resolved_toml
     problems = []
     for path in args.scenes:
         try:
@@ -176,7 +176,7 @@ def cmd_replay(args) -> int:
     if problem:
         return _fail([problem])
     out = args.output or str(Path(args.trajectory).with_suffix(".rrd"))
-    from .recording import replay
+    from .io.recording import replay
     frames = replay(args.trajectory, out)
     print(f"blobsim: recorded {frames} frames of {args.trajectory} into {out}")
     return 0
@@ -192,7 +192,7 @@ def cmd_view(args) -> int:
         problem = _trajectory_problem(path)
         if problem:
             return _fail([problem])
-        from .recording import replay
+        from .io.recording import replay
         rrd = path.with_suffix(".rrd")
         replay(path, rrd)
         path = rrd
@@ -213,14 +213,14 @@ def cmd_render(args) -> int:
     problem = _trajectory_problem(args.trajectory)
     if problem:
         return _fail([problem])
-    from .render import render
+    from .tools.render import render
     out = render(args.trajectory, args.output or Path(args.trajectory).with_suffix(".png"), frames=args.frames)
     print(f"blobsim: drew {out}")
     return 0
 
 
 def cmd_stress(args) -> int:
-    from .stress import run_stress
+    from .tools.stress import run_stress
     result = run_stress(args.methods, args.output, args.quick)
     print(result["table"])
     print(f"\nblobsim: {sum(v.passed for v in result['verdicts'])} of {len(result['verdicts'])} runs passed; "
@@ -231,12 +231,12 @@ def cmd_stress(args) -> int:
 def cmd_study(args) -> int:
     from pathlib import Path
 
-    from .scene import SceneError, load_scene
+    from .scene.schema import SceneError, load_scene
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
         return _fail(e.problems)
-    from .study import chart, cheapest, format_points, run_study, write_csv
+    from .tools.study import chart, cheapest, format_points, run_study, write_csv
     points = run_study(scene, args.methods, args.output, args.duration)
     out = Path(args.output)
     write_csv(points, out / f"{scene.name}_study.csv")
@@ -252,14 +252,14 @@ def cmd_study(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import main as bench_main
+    from .tools.bench import main as bench_main
     return bench_main(args.quick, args.json)
 
 
 def cmd_compare(args) -> int:
     import json
 
-    from .compare import CannotCompare, compare_files
+    from .tools.compare import CannotCompare, compare_files
     try:
         report = compare_files(args.a, args.b, atol=args.atol, rtol=args.rtol, frames=args.frames, until=args.until,
                                allow_incomplete=args.allow_incomplete)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from blobcli import build, build_params, parse_scene, step
-from blobcli.stress import depth_inside_polygon  # noqa: F401 (for the tests)
+from blobcli.tools.stress import depth_inside_polygon  # noqa: F401 (for the tests)
 
 # Tolerances, with what they bound.
 AREA_ROUNDOFF = 1e-12  # relative area error of a free blob after a projection / a step
@@ -51,7 +51,7 @@ def polygon_area(points) -> float:
 
 
 def self_intersects(points) -> bool:
-    from blobcli.scene import first_crossing
+    from blobcli.scene.schema import first_crossing
     return first_crossing(points) is not None
 
 

@@ -25,7 +25,7 @@ def version_key() -> str:
 def final_positions_hash(scene_name: str, steps: int) -> str:
     """sha256 of the final positions' bytes after `steps` steps (Box2D's determinism check)."""
     from blobcli import build, build_params, load_scene, step
-    from blobcli.scene import with_overrides
+    from blobcli.scene.schema import with_overrides
     scene = with_overrides(load_scene(ROOT / "scenes" / f"{scene_name}.toml"), steps=steps)
     model, state = build(scene)
     params = build_params(scene)

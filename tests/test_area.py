@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from blobcli.area import _area_kot
+from blobcli.sim.area import _area_kot
 from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, polygon_area
 
 

@@ -182,7 +182,7 @@ def test_killed_run_never_leaves_an_unreadable_file_at_the_path(tmp_path):
 
 def test_runaway_stops_with_exit_1_naming_step_blob_vertex(tmp_path, monkeypatch):
     """A stage that produces NaN at step 5: the run stops there and keeps frames 0..4."""
-    import blobcli.run as run_module
+    import blobcli.io.run as run_module
     from blobcli import parse_scene
     real_step = run_module.step
     calls = []
@@ -214,7 +214,7 @@ def test_two_runs_are_bit_identical(tmp_path):
 @pytest.mark.parametrize("scene", SCENES, ids=[s.stem for s in SCENES])
 def test_every_shipped_scene_runs(tmp_path, scene):
     from blobcli import load_scene, simulate
-    from blobcli.scene import with_overrides
+    from blobcli.scene.schema import with_overrides
     sc = with_overrides(load_scene(scene), steps=300)
     result = simulate(sc, tmp_path / "o.h5")
     assert result.status == "complete"

@@ -6,10 +6,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import blobcli.model
-import blobcli.pipeline
+import blobcli.sim.model
+import blobcli.sim.pipeline
 from blobcli import blob_measures, build, build_params, load_scene, step
-from blobcli.collide import BLOBS_PER_STRIP, MAX_STRIPS, _find_pairs, _strips, find_blob_pairs
+from blobcli.sim.collide import BLOBS_PER_STRIP, MAX_STRIPS, _find_pairs, _strips, find_blob_pairs
 from conftest import (BLOB_PENETRATION, LOADED_AREA, MIRROR, MOMENTUM_ROUNDOFF, REST_CREEP, STACK_FLICKER,
                       depth_inside_polygon, momentum, scene, self_intersects, simulate_steps)
 
@@ -143,7 +143,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
     center = rng.uniform(0, spread, (blobs, 2))
     radius = rng.uniform(0.1, 1.0, blobs)
     pairs = _find_pairs[True](center, radius)
-    from blobcli.collide import BROAD_MARGIN
+    from blobcli.sim.collide import BROAD_MARGIN
     expected = set()
     for a in range(blobs):
         for b in range(a + 1, blobs):
@@ -158,8 +158,8 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
 def test_collision_stages_do_not_run_with_one_blob(monkeypatch):
     def forbidden(*args):
         raise AssertionError("collision stage ran for a one-blob scene")
-    monkeypatch.setattr(blobcli.pipeline, "collide_blobs", forbidden)
-    monkeypatch.setattr(blobcli.pipeline, "find_blob_pairs", forbidden)
+    monkeypatch.setattr(blobcli.sim.pipeline, "collide_blobs", forbidden)
+    monkeypatch.setattr(blobcli.sim.pipeline, "find_blob_pairs", forbidden)
     sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n")
     model, state = build(sc)
     step(state, model, build_params(sc))
@@ -174,7 +174,7 @@ def test_pile_runs_are_bit_identical():
 def test_serial_and_parallel_stage_builds_give_the_same_bits(monkeypatch):
     parallel = settle("pile", 60)  # 120 blobs: the parallel builds
     assert parallel[0].parallel
-    monkeypatch.setattr(blobcli.model, "PARALLEL_BLOBS", 10**6)
+    monkeypatch.setattr(blobcli.sim.model, "PARALLEL_BLOBS", 10**6)
     serial = settle("pile", 60)
     assert not serial[0].parallel
     assert serial[1].pos.tobytes() == parallel[1].pos.tobytes()

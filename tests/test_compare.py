@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from blobcli import load_scene, simulate
-from blobcli.compare import CannotCompare, compare_files
-from blobcli.scene import with_overrides
+from blobcli.tools.compare import CannotCompare, compare_files
+from blobcli.scene.schema import with_overrides
 from conftest import GOLDEN_ATOL
 from golden_cases import GOLDEN, HASH_SCENE, HASH_STEPS, final_positions_hash, version_key
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from blobcli import read_trajectory
-from blobcli.recording import blob_colors, read_positions
+from blobcli.io.recording import blob_colors, read_positions
 
 ROOT = Path(__file__).resolve().parent.parent
 RERUN = Path(sys.executable).parent / "rerun"  # the viewer/CLI that ships with rerun-sdk

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from blobcli.scene import MAX_VERTICES, SceneError, load_scene, parse_scene, reference_markdown, resolved_toml
+from blobcli.scene.schema import MAX_VERTICES, SceneError, load_scene, parse_scene, reference_markdown, resolved_toml
 
 ROOT = Path(__file__).resolve().parent.parent
 GOOD_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
@@ -138,4 +138,4 @@ def test_resolved_scene_round_trips_through_the_validator():
 
 def test_readme_scene_reference_is_generated_from_the_dataclasses():
     readme = (ROOT / "README.md").read_text()
-    assert reference_markdown() in readme, "regenerate the README reference: python -m blobcli.scene"
+    assert reference_markdown() in readme, "regenerate the README reference: python -m blobcli.scene.schema"

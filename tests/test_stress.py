@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from blobcli.scene import METHODS, parse_scene
-from blobcli.stress import (AREA_DRIFT, detect_area_drift, detect_energy_growth, detect_inside_out, detect_nonfinite,
+from blobcli.scene.schema import METHODS, parse_scene
+from blobcli.tools.stress import (AREA_DRIFT, detect_area_drift, detect_energy_growth, detect_inside_out, detect_nonfinite,
                             detect_tunnelled, run_stress)
 
 

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from blobcli import load_scene
-from blobcli.study import LADDER, Point, cheapest, run_study
+from blobcli.tools.study import LADDER, Point, cheapest, run_study
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE.parent))
 
 from blobcli import load_scene, simulate  # noqa: E402
-from blobcli.scene import with_overrides  # noqa: E402
+from blobcli.scene.schema import with_overrides  # noqa: E402
 from golden_cases import GOLDEN, HASH_SCENE, HASH_STEPS, final_positions_hash, version_key  # noqa: E402
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .jit import kernel
+from ..jit import kernel
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 

@@ -570,5 +570,5 @@ def reference_markdown() -> str:
     return "\n".join(out)
 
 
-if __name__ == "__main__":  # python -m blobcli.scene: print the README's scene reference
+if __name__ == "__main__":  # python -m blobcli.scene.schema: print the README's scene reference
     print(reference_markdown(), end="")

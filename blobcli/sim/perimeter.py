@@ -11,7 +11,7 @@ import math
 
 import numba
 
-from .jit import inline_kernel, stage_kernel
+from ..jit import inline_kernel, stage_kernel
 
 
 @inline_kernel

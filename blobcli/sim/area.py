@@ -32,9 +32,9 @@ vertex of the parabola, moves the blob to the nearest area it can reach.
 
 import numba
 
-from .jit import inline_kernel, kernel, stage_kernel
+from ..jit import inline_kernel, kernel, stage_kernel
 from .perimeter import solve_distance
-from .scene import METHODS
+from ..scene.schema import METHODS
 
 
 @inline_kernel

@@ -56,7 +56,7 @@ def versions() -> dict:
     """Versions and settings a bit-for-bit reproduction needs."""
     import llvmlite
     import numba
-    from . import __version__
+    from .. import __version__
     env = {k: os.environ.get(k, "") for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                                "PYTHONHASHSEED")}
     return {"blobsim_version": __version__, "python": sys.version.split()[0], "numpy": np.__version__,
@@ -69,7 +69,7 @@ class TrajectoryWriter:
     """Streams frames of one run into an H5MD file."""
 
     def __init__(self, path, scene, model, params):
-        from . import __version__
+        from .. import __version__
         self.path = Path(path)
         self.partial = self.path.with_name(self.path.name + ".partial")
         self.path.parent.mkdir(parents=True, exist_ok=True)

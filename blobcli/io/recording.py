@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import static_outline
+from ..sim.model import static_outline
 
 BATCH_FRAMES = 64  # frames per send_columns call
 
@@ -126,7 +126,7 @@ def replay(h5_path, rrd_path) -> int:
     """Write the recording of an existing trajectory file, without simulating. Returns frames."""
     import h5py
 
-    from .scene import parse_scene
+    from ..scene.schema import parse_scene
     with h5py.File(h5_path, "r") as f:
         p = f["parameters"]
         scene = parse_scene(p["scene"][()].decode(), str(h5_path))

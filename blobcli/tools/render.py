@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .h5md import read_trajectory
-from .model import static_outline
-from .recording import blob_colors
-from .scene import parse_scene
+from ..io.h5md import read_trajectory
+from ..sim.model import static_outline
+from ..io.recording import blob_colors
+from ..scene.schema import parse_scene
 
 
 def draw_statics(ax, statics, lo, hi):

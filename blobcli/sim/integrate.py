@@ -9,7 +9,7 @@ import math
 
 import numba
 
-from .jit import stage_kernel
+from ..jit import stage_kernel
 
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
 

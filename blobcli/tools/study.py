@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .h5md import read_trajectory
-from .scene import METHODS, with_overrides
+from ..io.h5md import read_trajectory
+from ..scene.schema import METHODS, with_overrides
 
 # (dt divisor, substeps, iterations), cheapest first
 LADDER = [(1, 1, 1), (1, 1, 2), (1, 2, 1), (1, 2, 2), (1, 4, 1), (1, 4, 2), (1, 4, 4), (2, 4, 2), (1, 8, 2),
@@ -52,7 +52,7 @@ class Point:
 
 
 def _run(scene, out, method, dt, substeps, iterations, every):
-    from .run import simulate
+    from ..io.run import simulate
     s = replace(scene.settings, method=method, dt=dt, substeps=substeps, iterations=iterations,
                 steps=None, duration=scene.settings.duration)
     sc = replace(scene, settings=s, output=replace(scene.output, every=every))

@@ -51,7 +51,7 @@ import math
 import numba
 import numpy as np
 
-from .jit import inline_kernel, kernel, stage_kernel
+from ..jit import inline_kernel, kernel, stage_kernel
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance

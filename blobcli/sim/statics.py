@@ -18,7 +18,7 @@ import math
 
 import numba
 
-from .jit import inline_kernel, stage_kernel
+from ..jit import inline_kernel, stage_kernel
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
 

@@ -86,9 +86,9 @@ def _median_time(fn, repeats: int, inner: int) -> float:
 
 
 def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict:
-    from .model import build, build_params
-    from .pipeline import step
-    from .scene import parse_scene
+    from ..sim.model import build, build_params
+    from ..sim.pipeline import step
+    from ..scene.schema import parse_scene
     scene = parse_scene(scene_text(blobs, layout), f"bench-{layout}-{blobs}")
     model, state = build(scene)
     params = build_params(scene)
@@ -104,12 +104,12 @@ def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) ->
 
 def measure_core(blobs: int, repeats: int) -> dict:
     """The core substep alone: predict, iterations × (perimeter, area, floor), velocity update."""
-    from .area import AREA_METHODS
-    from .integrate import predict, update_velocities
-    from .model import build, build_params
-    from .perimeter import solve_perimeter
-    from .scene import parse_scene
-    from .statics import collide_static
+    from ..sim.area import AREA_METHODS
+    from ..sim.integrate import predict, update_velocities
+    from ..sim.model import build, build_params
+    from ..sim.perimeter import solve_perimeter
+    from ..scene.schema import parse_scene
+    from ..sim.statics import collide_static
     scene = parse_scene(scene_text(blobs, "apart"), "bench-core")
     model, state = build(scene)
     params = build_params(scene)
@@ -131,14 +131,14 @@ def measure_core(blobs: int, repeats: int) -> dict:
 def measure_stages(blobs: int, settle_steps: int) -> dict:
     """Where a piled step's time goes: ms per step for each stage, and the narrow phase's
     split into detection and resolution, with the number of contacts per iteration."""
-    from . import collide
-    from .area import AREA_METHODS
-    from .integrate import damp_relative, predict, update_velocities
-    from .model import build, build_params
-    from .perimeter import solve_perimeter
-    from .pipeline import step
-    from .scene import parse_scene
-    from .statics import collide_static
+    from ..sim import collide
+    from ..sim.area import AREA_METHODS
+    from ..sim.integrate import damp_relative, predict, update_velocities
+    from ..sim.model import build, build_params
+    from ..sim.perimeter import solve_perimeter
+    from ..sim.pipeline import step
+    from ..scene.schema import parse_scene
+    from ..sim.statics import collide_static
     scene = parse_scene(scene_text(blobs, "piled"), "bench-stages")
     model, state = build(scene)
     params = build_params(scene)
@@ -186,12 +186,12 @@ def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> di
     floor = pymunk.Segment(space.static_body, (-1e4, 0.0), (1e4, 0.0), 0.01)
     floor.friction = 0.5
     space.add(floor)
-    from .model import build
-    from .scene import parse_scene
+    from ..sim.model import build
+    from ..scene.schema import parse_scene
     scene = parse_scene(scene_text(blobs, layout), "bench-peer")
     for s in scene.statics:
         if s.kind == "box":
-            from .model import static_outline
+            from ..sim.model import static_outline
             wall = pymunk.Poly(space.static_body, [tuple(p) for p in static_outline(s)])
             wall.friction = 0.5
             space.add(wall)
@@ -255,8 +255,8 @@ def measure_recording(blobs: int, steps: int, repeats: int) -> dict:
     """Run time with every step recorded versus every 10th (the writer's share of a run)."""
     from dataclasses import replace
 
-    from .run import simulate
-    from .scene import parse_scene
+    from ..io.run import simulate
+    from ..scene.schema import parse_scene
     base = parse_scene(f"[scene]\nsteps = {steps}\n" + scene_text(blobs, "apart"), "bench-record")
     out = {}
     with tempfile.TemporaryDirectory() as d:

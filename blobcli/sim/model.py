@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
+from ..scene.schema import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 

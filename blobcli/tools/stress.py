@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .h5md import read_trajectory
-from .scene import METHODS, first_crossing, load_scene, parse_scene, with_overrides
+from ..io.h5md import read_trajectory
+from ..scene.schema import METHODS, first_crossing, load_scene, parse_scene, with_overrides
 
-STRESS_DIR = Path(__file__).resolve().parent.parent / "scenes" / "stress"
+STRESS_DIR = Path(__file__).resolve().parent / "stress_scenes"
 AREA_DRIFT = 0.10  # relative area error allowed after SETTLE
 ENERGY_GROWTH = 0.05  # relative rise of kinetic + gravitational energy allowed after SETTLE
 SETTLE = 0.5  # s
@@ -94,7 +94,7 @@ def depth_inside_polygon(points, polygon) -> np.ndarray:
 
 
 def detect_tunnelled(position, statics) -> str | None:
-    from .model import static_outline
+    from ..sim.model import static_outline
     for k, s in enumerate(statics):
         for f in range(position.shape[0]):
             p = position[f]
@@ -163,7 +163,7 @@ def judge(path, status: str) -> list[str]:
 
 
 def run_one(scene, method: str, out: Path) -> Verdict:
-    from .run import simulate
+    from ..io.run import simulate
     scene = with_overrides(scene, method=method)
     scene = replace(scene, output=replace(scene.output, every=RECORD_EVERY))
     result = simulate(scene, out)

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from .h5md import TrajectoryWriter
-from .measure import blob_measures, first_runaway
-from .model import build, build_params
-from .scene import Scene
-from .pipeline import step
+from ..sim.measure import blob_measures, first_runaway
+from ..sim.model import build, build_params
+from ..scene.schema import Scene
+from ..sim.pipeline import step
 
 
 @dataclass

@@ -1,0 +1,1 @@
+"""Files in and out: the H5MD trajectory format, the run loop that writes it, rerun recordings."""

@@ -1,0 +1,1 @@
+"""Scene definition: the TOML schema (frozen dataclasses), its validation and reference."""
