@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from blobcli import build, build_params, parse_scene, step
-from blobcli.tools.stress import depth_inside_polygon  # noqa: F401 (for the tests)
+from blobcli.geometry import depth_inside_polygon, first_crossing, signed_area
 
 # Tolerances, with what they bound.
 AREA_ROUNDOFF = 1e-12  # relative area error of a free blob after a projection / a step
@@ -46,12 +46,10 @@ def com(state, model):
 
 
 def polygon_area(points) -> float:
-    x, y = np.asarray(points).T
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    return signed_area(np.asarray(points).tolist())
 
 
 def self_intersects(points) -> bool:
-    from blobcli.scene.schema import first_crossing
     return first_crossing(points) is not None
 
 

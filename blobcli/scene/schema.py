@@ -189,53 +189,6 @@ def with_overrides(scene: Scene, *, steps=None, duration=None, method=None) -> S
     return replace(scene, settings=s)
 
 
-# --- polygon checks used by validation ---------------------------------------------------
-
-def signed_area(points) -> float:
-    """Shoelace area: positive for counter-clockwise winding."""
-    n = len(points)
-    return 0.5 * sum(points[i][0] * points[(i + 1) % n][1] - points[(i + 1) % n][0] * points[i][1]
-                     for i in range(n))
-
-
-def first_crossing(points) -> tuple[int, int] | None:
-    """First pair of non-adjacent edges (i, j) of a closed polygon that touch, or None."""
-    import numpy as np
-    p = np.asarray(points, dtype=float)
-    n = len(p)
-    a, b = p, np.roll(p, -1, axis=0)
-
-    def orient(p, q, r):
-        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
-                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
-
-    for i in range(n):
-        j = np.arange(i + 1, n)
-        j = j[(j != (i + 1) % n) & ((j + 1) % n != i)]  # skip edges sharing a vertex with i
-        if len(j) == 0:
-            continue
-        o1 = orient(a[i], b[i], a[j])
-        o2 = orient(a[i], b[i], b[j])
-        o3 = orient(a[j], b[j], a[i])
-        o4 = orient(a[j], b[j], b[i])
-        # Opposite sides both ways, or collinear; either way the boxes must overlap
-        # (nearly collinear edges along a floor get rounding-noise signs).
-        hit = ((o1 != o2) & (o3 != o4)) | ((o1 == 0) & (o2 == 0))
-        hit &= _overlap(a[i], b[i], a[j], b[j])
-        if hit.any():
-            return i, int(j[np.argmax(hit)])
-    return None
-
-
-def _overlap(a, b, c, d):
-    import numpy as np
-    lo = np.minimum(a, b)
-    hi = np.maximum(a, b)
-    lo2 = np.minimum(c, d)
-    hi2 = np.maximum(c, d)
-    return np.all((lo2 <= hi) & (hi2 >= lo), axis=-1)
-
-
 # --- loading -----------------------------------------------------------------------------
 
 def fmt_path(path: tuple) -> str:
@@ -354,6 +307,7 @@ def _table(cls, raw, path: tuple, problems: _Problems, allowed=None):
 
 
 def _check_polygon(points, path, problems: _Problems):
+    from ..geometry import first_crossing, signed_area  # numpy: only for scenes with polygons, so --help stays instant
     crossing = first_crossing(points)
     if crossing:
         i, j = crossing

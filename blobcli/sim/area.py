@@ -34,6 +34,7 @@ import numba
 
 from ..jit import inline_kernel, kernel, stage_kernel
 from .perimeter import solve_distance
+from .ring import next_in_ring, twice_ring_area
 from ..scene.schema import METHODS
 
 
@@ -97,14 +98,13 @@ def area_kot(state, model, params, h):
 @kernel
 def _area_and_gradient_norm(pos, inv_mass, o, e):
     """(A, Σ w_i |∇_i A|²) of one blob."""
-    twice_area = norm = 0.0
+    norm = 0.0
     for i in range(o, e):
-        j = i + 1 if i + 1 < e else o
+        j = next_in_ring(i, o, e)
         l = i - 1 if i > o else e - 1
-        twice_area += pos[i, 0] * pos[j, 1] - pos[j, 0] * pos[i, 1]
         gx, gy = 0.5 * (pos[j, 1] - pos[l, 1]), 0.5 * (pos[l, 0] - pos[j, 0])
         norm += inv_mass[i] * (gx * gx + gy * gy)
-    return 0.5 * twice_area, norm
+    return 0.5 * twice_ring_area(pos, o, e), norm
 
 
 @stage_kernel

@@ -52,6 +52,7 @@ import numba
 import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
+from .ring import next_in_ring, ring_contains
 
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
@@ -66,7 +67,7 @@ def _blob_bounds(pos, offsets, center, radius, edges):
         cx = cy = 0.0
         for i in range(o, e):
             x, y = pos[i, 0], pos[i, 1]
-            j = i + 1 if i + 1 < e else o
+            j = next_in_ring(i, o, e)
             ex, ey = pos[j, 0] - x, pos[j, 1] - y
             len2 = ex * ex + ey * ey
             # The edge table the narrow phase reads, one row per quantity so that its loop
@@ -141,20 +142,6 @@ def find_blob_pairs(state, model, params):
     state.partners = _partners(state.pairs, model.blob_count)
     state.strips = _strips(state.center)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
-
-
-@inline_kernel
-def _inside(pos, o, e, x, y):
-    """Crossing-number test: is (x, y) inside the closed polygon pos[o:e]?"""
-    inside = False
-    j = e - 1
-    for i in range(o, e):
-        ax, ay, bx, by = pos[j, 0], pos[j, 1], pos[i, 0], pos[i, 1]
-        if (ay > y) != (by > y):
-            if x < ax + (y - ay) * (bx - ax) / (by - ay):
-                inside = not inside
-        j = i
-    return inside
 
 
 @inline_kernel
@@ -246,8 +233,8 @@ def _deep_pairs(pos, offsets, pairs, center, radius, deep):
         a, b = pairs[k, 0], pairs[k, 1]
         # A centre farther from the other's centre than its radius cannot be inside it.
         d2 = (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2
-        deep[k] = ((d2 <= radius[b] ** 2 and _inside(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
-                   or (d2 <= radius[a] ** 2 and _inside(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
+        deep[k] = ((d2 <= radius[b] ** 2 and ring_contains(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
+                   or (d2 <= radius[a] ** 2 and ring_contains(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
 
 
 @stage_kernel

@@ -3,6 +3,7 @@
 import numpy as np
 
 from ..jit import kernel
+from .ring import twice_ring_area
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 
@@ -11,12 +12,10 @@ RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 def _blob_measures(pos, vel, inv_mass, offsets, area, kinetic):
     for b in range(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
-        twice_area = ke = 0.0
+        ke = 0.0
         for i in range(o, e):
-            j = i + 1 if i + 1 < e else o
-            twice_area += pos[i, 0] * pos[j, 1] - pos[j, 0] * pos[i, 1]
             ke += (vel[i, 0] ** 2 + vel[i, 1] ** 2) / inv_mass[i]
-        area[b] = 0.5 * twice_area
+        area[b] = 0.5 * twice_ring_area(pos, o, e)
         kinetic[b] = 0.5 * ke
 
 

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.schema import STATIC_KINDS, BlobDef, Scene, StaticDef, signed_area
+from ..geometry import ring_next, signed_area
+from ..scene.schema import STATIC_KINDS, BlobDef, Scene, StaticDef
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -165,9 +166,7 @@ def build(scene: Scene) -> tuple[Model, State]:
     material = np.concatenate([np.tile(np.array(p[5], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
     blob_of = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
     inv_mass = (counts / mass)[blob_of]
-    nxt = np.arange(len(pos)) + 1
-    nxt[offsets[1:] - 1] = offsets[:-1]
-    rest_length = np.hypot(*(pos[nxt] - pos).T)
+    rest_length = np.hypot(*(pos[ring_next(offsets)] - pos).T)
 
     statics = build_statics(scene.statics)
     springs = internal_springs(pos, offsets)

@@ -12,6 +12,7 @@ import math
 import numba
 
 from ..jit import inline_kernel, stage_kernel
+from .ring import next_in_ring
 
 
 @inline_kernel
@@ -48,7 +49,7 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
         for start in range(2):
             for k in range(start, paired, 2):
                 i = o + k
-                solve_distance(pos, inv_mass, i, i + 1 if i + 1 < e else o, rest_length[i], lam, i, alpha)
+                solve_distance(pos, inv_mass, i, next_in_ring(i, o, e), rest_length[i], lam, i, alpha)
         if n % 2 == 1:
             solve_distance(pos, inv_mass, e - 1, o, rest_length[e - 1], lam, e - 1, alpha)
 

@@ -19,6 +19,7 @@ import math
 import numba
 
 from ..jit import inline_kernel, stage_kernel
+from .ring import crosses_ray
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
 
@@ -61,8 +62,7 @@ def _inside_shape(geom, start, stop, x, y):
     """Crossing-number test against the edges geom[start:stop] of one polygon."""
     inside = False
     for k in range(start, stop):
-        ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
-        if (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay):
+        if crosses_ray(geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3], x, y):
             inside = not inside
     return inside
 
@@ -181,9 +181,8 @@ def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
             best_t, best = 2.0, -1
             for k in range(shape_offsets[s], shape_offsets[s + 1]):
                 ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
-                if (ay > y) != (by > y):  # crossing number: is x inside the polygon?
-                    if x < ax + (y - ay) * (bx - ax) / (by - ay):
-                        inside = not inside
+                if crosses_ray(ax, ay, bx, by, x, y):  # crossing number: is x inside the polygon?
+                    inside = not inside
                 # Swept: did the path enter through this edge (outside its line, then inside)?
                 ex, ey = bx - ax, by - ay
                 d0 = (x0 - ax) * ey - (y0 - ay) * ex  # × |e|; the sign is what matters

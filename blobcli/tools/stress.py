@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.h5md import read_trajectory
-from ..scene.schema import METHODS, first_crossing, load_scene, parse_scene, with_overrides
+from ..geometry import depth_inside_polygon, first_crossing, ring_areas
+from ..scene.schema import METHODS, load_scene, parse_scene, with_overrides
 
 STRESS_DIR = Path(__file__).resolve().parent / "stress_scenes"
 AREA_DRIFT = 0.10  # relative area error allowed after SETTLE
@@ -57,17 +58,8 @@ def detect_nonfinite(status: str, position) -> str | None:
     return None
 
 
-def signed_areas(position, offsets) -> np.ndarray:
-    """(frames, blobs) shoelace areas."""
-    x, y = position[..., 0], position[..., 1]
-    nxt = np.arange(position.shape[1]) + 1
-    nxt[offsets[1:] - 1] = offsets[:-1]
-    cross = x * y[:, nxt] - x[:, nxt] * y
-    return 0.5 * np.add.reduceat(cross, offsets[:-1], axis=1)
-
-
 def detect_inside_out(position, offsets, rest_sign) -> str | None:
-    areas = signed_areas(position, offsets)
+    areas = ring_areas(position, offsets)
     flipped = np.argwhere(areas * rest_sign <= 0)
     if len(flipped):
         return f"inside out (blob {flipped[0][1]}, frame {flipped[0][0]})"
@@ -76,21 +68,6 @@ def detect_inside_out(position, offsets, rest_sign) -> str | None:
             if first_crossing(position[f, offsets[b]:offsets[b + 1]]) is not None:
                 return f"self-intersecting (blob {b}, frame {f})"
     return None
-
-
-def depth_inside_polygon(points, polygon) -> np.ndarray:
-    """For each point: its distance to the polygon's boundary if inside, else 0."""
-    points, polygon = np.asarray(points), np.asarray(polygon)
-    a, b = polygon, np.roll(polygon, -1, axis=0)
-    x, y = points[:, :1], points[:, 1:]
-    crosses = (a[:, 1] > y) != (b[:, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    inside = (crosses & (x < xc)).sum(axis=1) % 2 == 1
-    e = b - a
-    u = np.clip(((points[:, None, :] - a) * e).sum(-1) / (e * e).sum(-1), 0, 1)
-    dist = np.linalg.norm(points[:, None, :] - (a + u[..., None] * e), axis=-1).min(axis=1)
-    return np.where(inside, dist, 0.0)
 
 
 def detect_tunnelled(position, statics) -> str | None:
@@ -151,7 +128,7 @@ def judge(path, status: str) -> list[str]:
     offsets = t.offsets
     counts = np.diff(offsets)
     vertex_mass = np.repeat(t.mass / counts, counts)
-    rest_sign = np.sign(signed_areas(t.position[:1], offsets)[0])
+    rest_sign = np.sign(ring_areas(t.position[:1], offsets)[0])
     for reason in (detect_inside_out(t.position, offsets, rest_sign),
                    detect_tunnelled(t.position, scene.statics),
                    detect_area_drift(t.area, t.target_area, t.time),

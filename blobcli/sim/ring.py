@@ -1,0 +1,42 @@
+"""Ring geometry for the kernels: the formulas of `blobcli.geometry`, as inlined numba helpers.
+
+Blob b's ring is pos[o:e] with o, e = offsets[b], offsets[b + 1]; vertex i's edge joins it
+to `next_in_ring(i, o, e)`.
+"""
+
+from ..jit import inline_kernel
+
+
+@inline_kernel
+def next_in_ring(i, o, e):
+    """The vertex after i in the ring o..e-1 (the last joins the first)."""
+    return i + 1 if i + 1 < e else o
+
+
+@inline_kernel
+def twice_ring_area(pos, o, e):
+    """2A = Σ (x_i y_{i+1} − x_{i+1} y_i) of the ring pos[o:e], summed in ring order."""
+    twice_area = 0.0
+    for i in range(o, e):
+        j = next_in_ring(i, o, e)
+        twice_area += pos[i, 0] * pos[j, 1] - pos[j, 0] * pos[i, 1]
+    return twice_area
+
+
+@inline_kernel
+def crosses_ray(ax, ay, bx, by, x, y):
+    """Whether edge a→b crosses the ray from (x, y) toward +x (one step of the crossing-number
+    test: a point is inside a polygon when the ray crosses its boundary an odd number of times)."""
+    return (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay)
+
+
+@inline_kernel
+def ring_contains(pos, o, e, x, y):
+    """Crossing-number test: is (x, y) inside the closed polygon pos[o:e]?"""
+    inside = False
+    j = e - 1
+    for i in range(o, e):
+        if crosses_ray(pos[j, 0], pos[j, 1], pos[i, 0], pos[i, 1], x, y):
+            inside = not inside
+        j = i
+    return inside
