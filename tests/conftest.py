@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from blobcli import build, build_params, parse_scene, step
-from blobcli.geometry import depth_inside_polygon, first_crossing, signed_area
+from blobcli.geometry import first_crossing, signed_area
 
 # Tolerances, with what they bound.
 AREA_ROUNDOFF = 1e-12  # relative area error of a free blob after a projection / a step

@@ -10,8 +10,9 @@ import blobcli.sim.model
 import blobcli.sim.pipeline
 from blobcli import blob_measures, build, build_params, load_scene, step
 from blobcli.sim.collide import BLOBS_PER_STRIP, MAX_STRIPS, _find_pairs, _strips, find_blob_pairs
+from blobcli.geometry import depth_inside_polygon
 from conftest import (BLOB_PENETRATION, LOADED_AREA, MIRROR, MOMENTUM_ROUNDOFF, REST_CREEP, STACK_FLICKER,
-                      depth_inside_polygon, momentum, scene, self_intersects, simulate_steps)
+                      momentum, scene, self_intersects, simulate_steps)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -57,7 +58,7 @@ def settle(name, steps):
 
 
 def deepest_overlap(state, model):
-    find_blob_pairs(state, model, None)
+    find_blob_pairs(state, model, None, None)
     worst = 0.0
     for a, b in state.pairs:
         for x, y in ((a, b), (b, a)):
@@ -158,7 +159,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
 def test_collision_stages_do_not_run_with_one_blob(monkeypatch):
     def forbidden(*args):
         raise AssertionError("collision stage ran for a one-blob scene")
-    monkeypatch.setattr(blobcli.sim.pipeline, "collide_blobs", forbidden)
+    monkeypatch.setattr(blobcli.sim.pipeline, "detect_blob_contacts", forbidden)
     monkeypatch.setattr(blobcli.sim.pipeline, "find_blob_pairs", forbidden)
     sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n")
     model, state = build(sc)

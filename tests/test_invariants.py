@@ -5,8 +5,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from blobcli import blob_measures, build, build_params, step
+from blobcli.geometry import depth_inside_polygon
 from conftest import (AREA_ROUNDOFF, COM_ROUNDOFF, FLOOR, FREE_FALL_ROUNDOFF, MOMENTUM_ROUNDOFF, REST_CREEP, REST_SPEED, STATIC_PENETRATION,
-                      com, depth_inside_polygon, momentum, scene, self_intersects, simulate_steps)
+                      com, momentum, scene, self_intersects, simulate_steps)
 
 
 def free_blob(vertices, pressure, compliance, clockwise, damping=1.0, gravity="[0.0, 0.0]"):

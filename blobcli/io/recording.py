@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sim.model import static_outline
+from ..colliders import COLLIDERS
 
 BATCH_FRAMES = 64  # frames per send_columns call
 
@@ -30,20 +30,6 @@ def blob_colors(count: int) -> np.ndarray:
     hues = (np.arange(count) * 0.618033988749895) % 1.0
     rgb = np.array([colorsys.hsv_to_rgb(h, 0.65, 0.9) for h in hues]) if count else np.zeros((0, 3))
     return np.concatenate([np.round(rgb * 255), np.full((count, 1), 255)], axis=1).astype(np.uint8)
-
-
-def _static_strip(s, extent: float) -> np.ndarray:
-    if s.kind == "plane":
-        n = np.array(s.normal) / np.hypot(*s.normal)
-        t = np.array([-n[1], n[0]])
-        return np.array([np.array(s.point) - extent * t, np.array(s.point) + extent * t])
-    if s.kind == "segment":
-        return np.array([s.a, s.b])
-    if s.kind == "circle":
-        theta = np.linspace(0.0, 2.0 * np.pi, 65)
-        return np.stack([s.center[0] + s.radius * np.cos(theta), s.center[1] + s.radius * np.sin(theta)], axis=1)
-    pts = static_outline(s)
-    return np.vstack([pts, pts[:1]])
 
 
 class RerunRecorder:
@@ -66,7 +52,7 @@ class RerunRecorder:
         lo, hi = first_positions.min(axis=0), first_positions.max(axis=0)
         finite = [s for s in scene.statics if s.kind != "plane"]
         for s in finite:
-            strip = _static_strip(s, 0.0)
+            strip = COLLIDERS[s.kind].outline(s, 0.0)
             lo, hi = np.minimum(lo, strip.min(axis=0)), np.maximum(hi, strip.max(axis=0))
         pad = 0.1 * max(hi[0] - lo[0], hi[1] - lo[1], 1.0)
         lo, hi = lo - pad, hi + pad
@@ -80,7 +66,7 @@ class RerunRecorder:
         self.rec.save(self.path, default_blueprint=blueprint)
         extent = 2.0 * max(hi[0] - lo[0], hi[1] - lo[1])
         for i, s in enumerate(scene.statics):
-            self.rec.log(f"world/statics/{i}", rr.LineStrips2D([_static_strip(s, extent)], colors=[[90, 90, 90, 255]],
+            self.rec.log(f"world/statics/{i}", rr.LineStrips2D([COLLIDERS[s.kind].outline(s, extent)], colors=[[90, 90, 90, 255]],
                                                                 radii=[0.01]), static=True)
         for series in ("area_error", "kinetic_energy"):
             self.rec.log(f"series/{series}", rr.SeriesLines(names=list(names), colors=self.colors), static=True)

@@ -21,13 +21,6 @@ MAX_BLOBS = 200_000
 MAX_BLOB_VERTICES = 100_000  # one blob's ring (its area sums run in one thread)
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods; blobcli.area.AREA_METHODS has the same names
-STATIC_KINDS = {  # kind -> its geometry keys (all required, except box.angle)
-    "plane": ("point", "normal"),
-    "segment": ("a", "b"),
-    "box": ("center", "size", "angle"),
-    "circle": ("center", "radius"),
-    "polygon": ("points",),
-}
 
 
 class SceneError(Exception):
@@ -383,6 +376,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
             _check_blob(b, ("blob", i), problems)
             blob_defs.append(b)
 
+    from ..colliders import COLLIDERS  # numpy: imported when a scene is read, not for --help
     static_defs = []
     for i, rs in enumerate(statics):
         path = ("static", i)
@@ -390,12 +384,12 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         if not isinstance(rs, dict):
             problems.add(path, "must be a table", rs)
             continue
-        if kind not in STATIC_KINDS:
-            hint = difflib.get_close_matches(str(kind), list(STATIC_KINDS), n=1) if isinstance(kind, str) else []
-            problems.add(path + ("kind",), f"must be one of {', '.join(STATIC_KINDS)}"
+        if kind not in COLLIDERS:
+            hint = difflib.get_close_matches(str(kind), list(COLLIDERS), n=1) if isinstance(kind, str) else []
+            problems.add(path + ("kind",), f"must be one of {', '.join(COLLIDERS)}"
                          + (f"; did you mean {hint[0]!r}?" if hint else ""), kind)
             continue
-        geometry = STATIC_KINDS[kind]
+        geometry = COLLIDERS[kind].keys
         allowed = ["kind", *geometry, "friction", "static_friction", "restitution"]
         s = _table(StaticDef, rs, path, problems, allowed=allowed)
         if s is None:
@@ -500,8 +494,9 @@ def resolved_toml(scene: Scene) -> str:
     for b in scene.blobs:
         keys = None if b.points is None else [f.name for f in fields(b) if f.name not in ("vertices",)]
         table("[[blob]]", b, keys)
+    from ..colliders import COLLIDERS
     for st in scene.statics:
-        table("[[static]]", st, ["kind", *STATIC_KINDS[st.kind], "friction", "static_friction", "restitution"])
+        table("[[static]]", st, ["kind", *COLLIDERS[st.kind].keys, "friction", "static_friction", "restitution"])
     return "\n".join(out).rstrip() + "\n"
 
 

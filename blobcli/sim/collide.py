@@ -135,7 +135,7 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
     return count
 
 
-def find_blob_pairs(state, model, params):
+def find_blob_pairs(state, model, params, h):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
     _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
     state.pairs = _find_pairs[model.parallel](state.center, state.radius)
@@ -421,7 +421,7 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
     pos[e1, 1] -= w1 * dy
 
 
-def detect_blob_contacts(state, model, params):
+def detect_blob_contacts(state, model, params, h):
     """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
     _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
     deep = np.empty(len(state.pairs), dtype=np.bool_)
@@ -433,16 +433,10 @@ def detect_blob_contacts(state, model, params):
                             *state.partners, deep, state.c_edge, state.c_t, state.c_depth2)
 
 
-def resolve_blob_contacts(state, model, params):
+def resolve_blob_contacts(state, model, params, h):
     """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
     g = np.hypot(*params.gravity)
     up = -params.gravity / g if g > 0 else np.zeros(2)
     _resolve[model.parallel](state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient,
                              model.material, state.c_edge, state.c_t, state.blob_contact_depth, state.center,
                              state.radius, up[0], up[1], *state.strips)
-
-
-def collide_blobs(state, model, params):
-    """Narrow phase, then resolution with friction, for this iteration's blob pairs."""
-    detect_blob_contacts(state, model, params)
-    resolve_blob_contacts(state, model, params)

@@ -7,13 +7,13 @@ its ring. Only `State` changes during a step; `Model` and `Params` are read-only
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry import ring_next, signed_area
-from ..scene.schema import STATIC_KINDS, BlobDef, Scene, StaticDef
+from ..colliders import COLLIDERS, SOLVERS
+from ..scene.schema import BlobDef, Scene, StaticDef
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -33,13 +33,11 @@ class Params:
 
 @dataclass(frozen=True)
 class StaticSet:
-    """All static colliders of one kind, flattened.
+    """All static colliders run by one solver kernel, flattened.
 
-    Shape s owns rows geom[shape_offsets[s]:shape_offsets[s+1]]. A row is
-    plane (px, py, nx, ny), circle (cx, cy, r, 0), segment or polygon edge (ax, ay, bx, by);
-    polygons (and boxes) are counter-clockwise, so an edge's outward normal is its right side.
+    Shape s owns rows geom[shape_offsets[s]:shape_offsets[s+1]], laid out as blobcli/colliders.py says.
     """
-    kind: str  # "plane", "circle", "segment" or "polygon"
+    kind: str  # the solver: "plane", "segment", "circle" or "polygon" (boxes are polygons)
     geom: np.ndarray  # (rows, 4) float64
     shape_offsets: np.ndarray  # (shapes + 1,) int64
     material: np.ndarray  # (shapes, 3): static friction μ_s, kinetic μ_k, restitution e
@@ -202,39 +200,15 @@ def internal_springs(pos, offsets) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(pairs).astype(np.int64)) if pairs else np.zeros((0, 2), np.int64)
 
 
-def static_outline(s: StaticDef) -> np.ndarray:
-    """Counter-clockwise corner points of a box or polygon."""
-    if s.kind == "box":
-        w, h = s.size[0] / 2, s.size[1] / 2
-        corners = np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
-        c, t = math.cos(math.radians(s.angle)), math.sin(math.radians(s.angle))
-        return corners @ np.array([[c, t], [-t, c]]) + np.array(s.center)
-    pts = np.array(s.points, dtype=np.float64)
-    return pts if signed_area(pts) > 0 else pts[::-1].copy()
-
-
 def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
-    """Group colliders by kind (boxes become polygons), in the fixed order of COLLIDER_KINDS."""
-    rows: dict[str, list] = {k: [] for k in COLLIDER_KINDS}
+    """Group colliders by solver kernel (boxes join the polygons), in the fixed order of SOLVERS."""
+    rows: dict[str, list] = {k: [] for k in SOLVERS}
     for s in statics:
-        kind = "polygon" if s.kind == "box" else s.kind
-        if s.kind == "plane":
-            n = np.array(s.normal) / math.hypot(*s.normal)
-            geom = np.array([[*s.point, *n]])
-            box = [-np.inf, -np.inf, np.inf, np.inf]
-        elif s.kind == "circle":
-            geom = np.array([[*s.center, s.radius, 0.0]])
-            box = [s.center[0] - s.radius, s.center[1] - s.radius, s.center[0] + s.radius, s.center[1] + s.radius]
-        elif s.kind == "segment":
-            geom = np.array([[*s.a, *s.b]])
-            box = [min(s.a[0], s.b[0]), min(s.a[1], s.b[1]), max(s.a[0], s.b[0]), max(s.a[1], s.b[1])]
-        else:
-            pts = static_outline(s)
-            geom = np.concatenate([pts, np.roll(pts, -1, axis=0)], axis=1)
-            box = [*pts.min(axis=0), *pts.max(axis=0)]
-        rows[kind].append((geom, (s.static_friction, s.friction, s.restitution), box))
+        kind = COLLIDERS[s.kind]
+        geom, box = kind.rows(s)
+        rows[kind.solver].append((geom, (s.static_friction, s.friction, s.restitution), box))
     out = []
-    for kind in COLLIDER_KINDS:
+    for kind in SOLVERS:
         if not rows[kind]:
             continue
         sizes = [len(g) for g, _, _ in rows[kind]]
@@ -245,7 +219,3 @@ def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
                              material=np.array([m for _, m, _ in rows[kind]], dtype=np.float64),
                              aabb=np.array([b for _, _, b in rows[kind]], dtype=np.float64)))
     return tuple(out)
-
-
-COLLIDER_KINDS = ("plane", "segment", "circle", "polygon")
-assert set(COLLIDER_KINDS) | {"box"} == set(STATIC_KINDS)

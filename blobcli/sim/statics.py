@@ -231,7 +231,7 @@ def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
         pos[i, 0], pos[i, 1] = x, y
 
 
-COLLIDERS = {
+SOLVER_KERNELS = {  # by the `solver` name of blobcli/colliders.py
     "plane": _collide_plane,
     "segment": _collide_segment,
     "circle": _collide_circle,
@@ -239,8 +239,9 @@ COLLIDERS = {
 }
 
 
-def collide_static(state, model, statics):
-    """Run the collider kernel of one StaticSet (all shapes of one kind)."""
-    COLLIDERS[statics.kind][model.parallel](state.pos, state.prev, model.blob_of, model.material, statics.geom,
-                                            statics.shape_offsets, statics.material, statics.aabb,
-                                            state.contact_normal, state.contact_depth, state.contact_material)
+def collide_statics(state, model, params, h):
+    """Push vertices out of every static collider: one kernel per solver kind present."""
+    for statics in model.statics:
+        SOLVER_KERNELS[statics.kind][model.parallel](
+            state.pos, state.prev, model.blob_of, model.material, statics.geom, statics.shape_offsets,
+            statics.material, statics.aabb, state.contact_normal, state.contact_depth, state.contact_material)

@@ -102,75 +102,41 @@ def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) ->
             "vertex_substeps_per_s": n * params.substeps / sec, "ns_per_vertex_substep": sec * 1e9 / (n * params.substeps)}
 
 
-def measure_core(blobs: int, repeats: int) -> dict:
-    """The core substep alone: predict, iterations × (perimeter, area, floor), velocity update."""
-    from ..sim.area import AREA_METHODS
-    from ..sim.integrate import predict, update_velocities
-    from ..sim.model import build, build_params
-    from ..sim.perimeter import solve_perimeter
+CORE_STAGES = ("predict", "perimeter", "area", "statics", "velocities")
+
+
+def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tuple[dict, int, object]:
+    """Seconds per step by stage of the real step (pipeline.step with a clock), after settling."""
     from ..scene.schema import parse_scene
-    from ..sim.statics import collide_static
-    scene = parse_scene(scene_text(blobs, "apart"), "bench-core")
-    model, state = build(scene)
-    params = build_params(scene)
-    h = params.dt / params.substeps
-    floor = model.statics[0]
-
-    def substep():
-        predict(state, model, params, h)
-        for _ in range(params.iterations):
-            solve_perimeter(state, model, params, h)
-            AREA_METHODS["kot"](state, model, params, h)
-            collide_static(state, model, floor)
-        update_velocities(state, model, params, h)
-    substep()
-    sec = _median_time(substep, repeats, 50)
-    return {"blobs": blobs, "ns_per_vertex_substep": sec * 1e9 / model.vertex_count, "us_per_substep": sec * 1e6}
-
-
-def measure_stages(blobs: int, settle_steps: int) -> dict:
-    """Where a piled step's time goes: ms per step for each stage, and the narrow phase's
-    split into detection and resolution, with the number of contacts per iteration."""
-    from ..sim import collide
-    from ..sim.area import AREA_METHODS
-    from ..sim.integrate import damp_relative, predict, update_velocities
     from ..sim.model import build, build_params
-    from ..sim.perimeter import solve_perimeter
     from ..sim.pipeline import step
-    from ..scene.schema import parse_scene
-    from ..sim.statics import collide_static
-    scene = parse_scene(scene_text(blobs, "piled"), "bench-stages")
+    scene = parse_scene(scene_text_, name)
     model, state = build(scene)
     params = build_params(scene)
     for _ in range(settle_steps):
         step(state, model, params)
-    h = params.dt / params.substeps
-    spent = {k: 0.0 for k in ("damp + predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve",
-                              "statics", "velocities")}
-    contacts, steps = [], 5
-
-    def timed(name, fn):
-        t0 = time.perf_counter()
-        fn()
-        spent[name] += time.perf_counter() - t0
-
-    def detect():
-        collide.detect_blob_contacts(state, model, params)
-        contacts.append(int((state.c_edge >= 0).sum()))
-
+    step(state, model, params, {})  # warm the clocked path
+    clock, contacts = {}, []
     for _ in range(steps):
-        for _ in range(params.substeps):
-            timed("damp + predict", lambda: (damp_relative(state, model, params, h), predict(state, model, params, h)))
-            timed("broad phase", lambda: collide.find_blob_pairs(state, model, params))
-            for _ in range(params.iterations):
-                timed("perimeter", lambda: solve_perimeter(state, model, params, h))
-                timed("area", lambda: AREA_METHODS[params.method](state, model, params, h))
-                timed("blob detect", detect)
-                timed("blob resolve", lambda: collide.resolve_blob_contacts(state, model, params))
-                timed("statics", lambda: [collide_static(state, model, s) for s in model.statics])
-            timed("velocities", lambda: update_velocities(state, model, params, h))
-    return {"blobs": blobs, "ms_per_step": {k: 1e3 * v / steps for k, v in spent.items()},
-            "contacts_per_iteration": int(np.median(contacts)), "vertices": model.vertex_count}
+        step(state, model, params, clock)
+        contacts.append(int((state.c_edge >= 0).sum()))
+    return {k: v / steps for k, v in clock.items()}, int(np.median(contacts)), (model, params)
+
+
+def measure_core(blobs: int, steps: int) -> dict:
+    """The core substep (predict, perimeter, area, floor, velocities) of blobs apart on a floor,
+    taken from the real step's stage clock; the blob-blob stages and damping are not counted."""
+    per_step, _, (model, params) = _profile(scene_text(blobs, "apart"), "bench-core", 0, steps)
+    sec = sum(per_step.get(k, 0.0) for k in CORE_STAGES) / params.substeps
+    return {"blobs": blobs, "ns_per_vertex_substep": sec * 1e9 / model.vertex_count, "us_per_substep": sec * 1e6}
+
+
+def measure_stages(blobs: int, settle_steps: int) -> dict:
+    """Where a piled step's time goes: ms per step for each stage of the real step, and the
+    number of vertices in blob contact after an iteration."""
+    per_step, contacts, (model, _) = _profile(scene_text(blobs, "piled"), "bench-stages", settle_steps, 5)
+    return {"blobs": blobs, "ms_per_step": {k: 1e3 * v for k, v in per_step.items()},
+            "contacts_per_iteration": contacts, "vertices": model.vertex_count}
 
 
 def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:
@@ -186,13 +152,13 @@ def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> di
     floor = pymunk.Segment(space.static_body, (-1e4, 0.0), (1e4, 0.0), 0.01)
     floor.friction = 0.5
     space.add(floor)
-    from ..sim.model import build
+    from ..colliders import polygon_outline
     from ..scene.schema import parse_scene
+    from ..sim.model import build
     scene = parse_scene(scene_text(blobs, layout), "bench-peer")
     for s in scene.statics:
         if s.kind == "box":
-            from ..sim.model import static_outline
-            wall = pymunk.Poly(space.static_body, [tuple(p) for p in static_outline(s)])
+            wall = pymunk.Poly(space.static_body, [tuple(p) for p in polygon_outline(s)])
             wall.friction = 0.5
             space.add(wall)
     model, state = build(scene)
@@ -295,7 +261,7 @@ def run_bench(quick: bool = False) -> dict:
             peer = None if quick else measure_peer(n, layout, 3, settle)
             if peer:
                 results["peer"].append(peer)
-    results["core"] = measure_core(counts[-1], repeats)
+    results["core"] = measure_core(counts[-1], 10 if quick else 40)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
     results["startup"] = measure_startup(2 if quick else 5)
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
@@ -323,7 +289,7 @@ def format_bench(r: dict) -> str:
     rows = {(x["layout"], x["blobs"]): x for x in r["rows"]}
     lines.append("")
     c = r["core"]
-    lines.append(f"core substep (predict, perimeter, area, floor) at {c['blobs']} blobs: "
+    lines.append(f"core substep (predict, perimeter, area, floor, velocities) at {c['blobs']} blobs: "
                  f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep (target <= {t['core_ns_per_vertex_substep_1000']:g})")
     if ("piled", 1000) in rows:
         lines.append(f"piled substep at 1000 blobs: {rows[('piled', 1000)]['ms_per_substep']:.2f} ms "

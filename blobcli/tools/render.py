@@ -10,29 +10,22 @@ from pathlib import Path
 import numpy as np
 
 from ..io.h5md import read_trajectory
-from ..sim.model import static_outline
+from ..colliders import COLLIDERS
 from ..io.recording import blob_colors
 from ..scene.schema import parse_scene
 
 
 def draw_statics(ax, statics, lo, hi):
-    from matplotlib.patches import Circle
     extent = 2.0 * float(np.max(hi - lo))
     for s in statics:
-        if s.kind == "plane":
+        line = COLLIDERS[s.kind].outline(s, extent)
+        if s.kind == "segment":  # zero thickness: a line, not a solid
+            ax.plot(line[:, 0], line[:, 1], color="0.3", lw=2, zorder=1)
+            continue
+        if s.kind == "plane":  # the solid half-plane: a big quad behind the line
             n = np.array(s.normal) / np.hypot(*s.normal)
-            t = np.array([-n[1], n[0]])
-            p = np.array(s.point)
-            # the solid half-plane: a big quad behind the line
-            quad = np.array([p - extent * t, p + extent * t, p + extent * t - extent * n, p - extent * t - extent * n])
-            ax.fill(quad[:, 0], quad[:, 1], color="0.55", zorder=1)
-        elif s.kind == "segment":
-            ax.plot([s.a[0], s.b[0]], [s.a[1], s.b[1]], color="0.3", lw=2, zorder=1)
-        elif s.kind == "circle":
-            ax.add_patch(Circle(s.center, s.radius, color="0.55", zorder=1))
-        else:
-            pts = static_outline(s)
-            ax.fill(pts[:, 0], pts[:, 1], color="0.55", zorder=1)
+            line = np.array([line[0], line[1], line[1] - extent * n, line[0] - extent * n])
+        ax.fill(line[:, 0], line[:, 1], color="0.55", zorder=1)
 
 
 def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.h5md import read_trajectory
-from ..geometry import depth_inside_polygon, first_crossing, ring_areas
+from ..colliders import COLLIDERS
+from ..geometry import first_crossing, ring_areas
 from ..scene.schema import METHODS, load_scene, parse_scene, with_overrides
 
 STRESS_DIR = Path(__file__).resolve().parent / "stress_scenes"
@@ -71,16 +72,10 @@ def detect_inside_out(position, offsets, rest_sign) -> str | None:
 
 
 def detect_tunnelled(position, statics) -> str | None:
-    from ..sim.model import static_outline
     for k, s in enumerate(statics):
         for f in range(position.shape[0]):
             p = position[f]
-            if s.kind == "plane":
-                n = np.array(s.normal) / np.hypot(*s.normal)
-                bad = (p - s.point) @ n < -PENETRATION
-            elif s.kind == "circle":
-                bad = np.hypot(*(p - s.center).T) < s.radius - PENETRATION
-            elif s.kind == "segment":
+            if s.kind == "segment":  # zero thickness: a vertex that crossed it between frames
                 if f == 0:
                     continue
                 a, b = np.array(s.a), np.array(s.b)
@@ -91,7 +86,7 @@ def detect_tunnelled(position, statics) -> str | None:
                 u = ((position[f - 1] + (p - position[f - 1]) * (d0 / np.where(d0 != d1, d0 - d1, 1.0))[:, None]) - a) @ t
                 bad = crossing & (u >= 0) & (u <= np.hypot(*(b - a)))
             else:
-                bad = depth_inside_polygon(p, static_outline(s)) > PENETRATION
+                bad = COLLIDERS[s.kind].depth(p, s) > PENETRATION
             if np.any(bad):
                 return f"tunnelled (static {k}, frame {f})"
     return None

@@ -1,0 +1,102 @@
+"""The static collider kinds, in one table: each kind's scene keys, the rows its solver kernel
+reads, its outline for drawing, and how deep a point lies inside it.
+
+Everything that knows about collider kinds reads this table: scene validation (the keys),
+the model builder (kernel rows and bounding boxes), the recording and the filmstrip (the
+outline) and the stress detectors (the depth). The solver kernels themselves live in
+`blobcli.sim.statics`, one per `solver` name, all with one signature.
+
+Kernel rows, 4 float64 each: plane (px, py, nx, ny) with unit n out of the solid side;
+circle (cx, cy, r, 0); segment and polygon edge (ax, ay, bx, by). Polygons (boxes too) are
+counter-clockwise, so an edge's outward normal is its right-hand side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .geometry import depth_inside_polygon, signed_area
+
+
+@dataclass(frozen=True)
+class ColliderKind:
+    keys: tuple[str, ...]  # geometry keys of its [[static]] table (all required, except box.angle)
+    solver: str  # the kernel in blobcli.sim.statics that runs it
+    rows: Callable  # StaticDef -> (kernel rows (r, 4), aabb [xmin, ymin, xmax, ymax])
+    outline: Callable  # (StaticDef, extent m) -> closed polyline (k, 2); a plane is cut at ±extent
+    depth: Callable  # (points (M, 2), StaticDef) -> (M,) m inside it (0 outside; a segment has no inside)
+
+
+def polygon_outline(s) -> np.ndarray:
+    """Counter-clockwise corner points of a box or polygon."""
+    if s.kind == "box":
+        w, h = s.size[0] / 2, s.size[1] / 2
+        corners = np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
+        c, t = math.cos(math.radians(s.angle)), math.sin(math.radians(s.angle))
+        return corners @ np.array([[c, t], [-t, c]]) + np.array(s.center)
+    pts = np.array(s.points, dtype=np.float64)
+    return pts if signed_area(pts) > 0 else pts[::-1].copy()
+
+
+def _unit_normal(s) -> np.ndarray:
+    return np.array(s.normal) / math.hypot(*s.normal)
+
+
+def _plane_rows(s):
+    return np.array([[*s.point, *_unit_normal(s)]]), [-np.inf, -np.inf, np.inf, np.inf]
+
+
+def _plane_outline(s, extent):
+    n = _unit_normal(s)
+    t = np.array([-n[1], n[0]])
+    return np.array([np.array(s.point) - extent * t, np.array(s.point) + extent * t])
+
+
+def _plane_depth(points, s):
+    return np.maximum(-(np.asarray(points) - s.point) @ _unit_normal(s), 0.0)
+
+
+def _segment_rows(s):
+    return (np.array([[*s.a, *s.b]]),
+            [min(s.a[0], s.b[0]), min(s.a[1], s.b[1]), max(s.a[0], s.b[0]), max(s.a[1], s.b[1])])
+
+
+def _circle_rows(s):
+    r = s.radius
+    return np.array([[*s.center, r, 0.0]]), [s.center[0] - r, s.center[1] - r, s.center[0] + r, s.center[1] + r]
+
+
+def _circle_outline(s, extent):
+    theta = np.linspace(0.0, 2.0 * np.pi, 65)
+    return np.stack([s.center[0] + s.radius * np.cos(theta), s.center[1] + s.radius * np.sin(theta)], axis=1)
+
+
+def _circle_depth(points, s):
+    return np.maximum(s.radius - np.hypot(*(np.asarray(points) - s.center).T), 0.0)
+
+
+def _polygon_rows(s):
+    pts = polygon_outline(s)
+    return np.concatenate([pts, np.roll(pts, -1, axis=0)], axis=1), [*pts.min(axis=0), *pts.max(axis=0)]
+
+
+def _polygon_outline(s, extent):
+    pts = polygon_outline(s)
+    return np.vstack([pts, pts[:1]])
+
+
+COLLIDERS = {
+    "plane": ColliderKind(("point", "normal"), "plane", _plane_rows, _plane_outline, _plane_depth),
+    "segment": ColliderKind(("a", "b"), "segment", _segment_rows, lambda s, extent: np.array([s.a, s.b]),
+                            lambda points, s: np.zeros(len(points))),
+    "box": ColliderKind(("center", "size", "angle"), "polygon", _polygon_rows, _polygon_outline,
+                        lambda points, s: depth_inside_polygon(points, polygon_outline(s))),
+    "circle": ColliderKind(("center", "radius"), "circle", _circle_rows, _circle_outline, _circle_depth),
+    "polygon": ColliderKind(("points",), "polygon", _polygon_rows, _polygon_outline,
+                            lambda points, s: depth_inside_polygon(points, polygon_outline(s))),
+}
+SOLVERS = ("plane", "segment", "circle", "polygon")  # the order the statics stage runs them in
