@@ -1,4 +1,10 @@
-"""Shared tolerances and helpers. Every numerical tolerance of the suite lives here."""
+"""Shared tolerances, fixtures and helpers. Every numerical tolerance of the suite lives here,
+with what it bounds; tests take test *inputs* (a compare --atol to exercise, a drop height) inline."""
+
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +26,19 @@ STACK_FLICKER = 1e-2  # m/s: regression guard on a settled stack's centre speeds
 LOADED_AREA = 0.03  # relative area error of a light blob under 150× heavier ones, after impact
 GOLDEN_ATOL = 1e-9  # m: fresh runs vs the stored golden trajectories (same versions: bit-identical)
 STATIC_PENETRATION = 1e-9  # m: depth of a vertex inside a static collider after a step
+FLOOR_ROUNDOFF = 1e-12  # m: a vertex resting on a plane is on it, never below by more than round-off
+PROJECTION_ROUNDOFF = 1e-14  # relative: one area projection of a small polygon (a few ulps of its coordinates)
+SEPARATION_MOMENTUM = 1e-9  # kg·m/s: momentum change while spawned-overlapping blobs push apart (120 steps)
+FIRST_ORDER = 1e-6  # halving the substep halves the free-fall error to within this (first-order integrator)
+COULOMB_SLIDE = 0.10  # relative: sliding distance on a slope against a = g (sin θ − μ cos θ)
+REBOUND_E0 = 0.15  # rebound / drop at e = 0: at most this (the blob's own elasticity)
+REBOUND_E05 = (0.1, 0.3)  # ... at e = 0.5 (a rigid ball: e² = 0.25)
+REBOUND_E1 = 0.75  # ... at e = 1: at least this (deformation keeps some energy)
+COMPARE_REPORT = 1e-12  # m: a deviation `compare` reports vs the one planted in the file
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: long runs (seconds each); CI runs them, `pytest -m 'not slow'` skips them")
 
 
 def scene(text: str):
@@ -64,3 +83,18 @@ normal = [0.0, 1.0]
 @pytest.fixture
 def tmp_out(tmp_path):
     return tmp_path / "out.h5"
+
+
+def start_run(args, out: Path, min_bytes: int = 1 << 20, timeout: float = 120.0) -> subprocess.Popen:
+    """Start `blobsim run ARGS -o OUT -q` and return once its .partial file has grown past
+    min_bytes, i.e. at least one block of frames is computed and on disk (polled, not slept)."""
+    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", *map(str, args), "-o", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = Path(str(out) + ".partial")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if partial.exists() and partial.stat().st_size > min_bytes:
+            return proc
+        time.sleep(0.02)
+    proc.kill()
+    raise AssertionError(f"run did not write {min_bytes} bytes of frames within {timeout} s: {proc.communicate()}")

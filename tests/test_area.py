@@ -1,11 +1,12 @@
 """The exact area projection ("kot"): random and degenerate polygons, both windings."""
 
 import numpy as np
+import pytest
+from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, PROJECTION_ROUNDOFF, polygon_area
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from blobcli.sim.area import _area_kot
-from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, polygon_area
 
 
 def star_polygon(rng, n, wobble):
@@ -54,21 +55,28 @@ def test_projection_conserves_momentum_with_unequal_masses(seed, n, ratio):
 def test_projection_is_identity_at_target():
     p = star_polygon(np.random.default_rng(1), 20, 0.2)
     out = project(p, polygon_area(p))
-    assert np.max(np.abs(out - p)) < 1e-14 * np.abs(p).max() * 10
+    assert np.max(np.abs(out - p)) < PROJECTION_ROUNDOFF * np.abs(p).max() * 10
 
 
 def test_smallest_root_is_taken():
     # A square of area 4 to area 4.41: moving each vertex outward by the least h.
     p = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
     out = project(p, 4.41)
-    np.testing.assert_allclose(out, p * 1.05, rtol=1e-14)
+    np.testing.assert_allclose(out, p * 1.05, rtol=PROJECTION_ROUNDOFF)
 
 
-def test_degenerate_a_zero_triangle():
-    # For a triangle Σ p_i × p_{i+1} (the h² term) vanishes: the quadratic is linear.
+def test_a_zero_the_quadratic_is_linear():
+    # Two of three vertices pinned (w = 0): only p_2 = ½ w_2 (y_0 − y_1, x_1 − x_0) is non-zero,
+    # so a = Σ (p_i × p_{i+1}) = 0 exactly and A(h) = A + ½ b h is linear: h = −c / b. The
+    # free vertex moves along its gradient (perpendicular to the opposite edge) to hit A = 2.
     p = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 1.0]])
-    out = project(p, 2.0)
-    assert abs(polygon_area(out) - 2.0) < 1e-14
+    inv_mass = np.array([0.0, 0.0, 1.0])
+    gx, gy = 0.5 * (p[0, 1] - p[1, 1]), 0.5 * (p[1, 0] - p[0, 0])
+    assert gx * 0.0 - gy * 0.0 == 0.0  # a's terms all multiply a zero p
+    out = project(p, 2.0, inv_mass)
+    np.testing.assert_array_equal(out[:2], p[:2])  # the pinned vertices stay
+    assert out[2, 0] == 0.0 and out[2, 1] == pytest.approx(2.0, rel=PROJECTION_ROUNDOFF)  # A = ½ · 2 · y
+    assert abs(polygon_area(out) - 2.0) < PROJECTION_ROUNDOFF * 2.0
 
 
 def test_unreachable_target_moves_to_nearest_area_without_nan():
@@ -89,4 +97,4 @@ def test_negative_discriminant_takes_parabola_vertex():
     # p_i = ½(y_{i+1}-y_{i-1}, x_{i-1}-x_{i+1}) = (x_i, y_i) here, so A(h) = 4 (1 + h)²,
     # minimum 0 at h = -1. Any negative target is unreachable: expect the vertex h = -1.
     out = project(p, -1.0)
-    np.testing.assert_allclose(out, 0.0, atol=1e-15)
+    np.testing.assert_allclose(out, 0.0, atol=PROJECTION_ROUNDOFF / 10)

@@ -6,18 +6,23 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from conftest import COMPARE_REPORT, GOLDEN_ATOL, start_run
+from golden_cases import (
+    GOLDEN,
+    HASH_SCENE,
+    HASH_STEPS,
+    final_positions_hash,
+    version_key,
+)
 
 from blobcli import load_scene, simulate
-from blobcli.tools.compare import CannotCompare, compare_files
 from blobcli.scene.schema import with_overrides
-from conftest import GOLDEN_ATOL
-from golden_cases import GOLDEN, HASH_SCENE, HASH_STEPS, final_positions_hash, version_key
+from blobcli.tools.compare import CannotCompare, compare_files
 
 ROOT = Path(__file__).resolve().parent.parent
 GOLDEN_DIR = ROOT / "tests" / "golden"
@@ -59,7 +64,7 @@ def test_a_difference_is_located_and_divergence_reported(pair):
     assert "verdict: different" in r.stdout
     report = json.loads(blobsim("compare", a, b, "--json").stdout)
     assert report["first_difference"]["blob_name"] == "heavy_0_0" and not report["same"]
-    assert abs(report["max_deviation"] - 2e-5) < 1e-12
+    assert abs(report["max_deviation"] - 2e-5) < COMPARE_REPORT
 
 
 def test_tolerances_and_horizons(pair):
@@ -135,6 +140,7 @@ def test_golden_hash_of_a_chaotic_pile():
     assert final_positions_hash(HASH_SCENE, HASH_STEPS) == hashes[key]
 
 
+@pytest.mark.slow
 def test_runs_are_bit_identical_whatever_the_thread_settings_and_hash_seed(tmp_path):
     outputs = []
     for k, settings in enumerate([{"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -152,12 +158,11 @@ def test_runs_are_bit_identical_whatever_the_thread_settings_and_hash_seed(tmp_p
     assert compare_files(*outputs).same
 
 
+@pytest.mark.slow
 def test_resume_after_ctrl_c_is_bit_identical_to_an_uninterrupted_run(tmp_path):
     scene = ROOT / "scenes" / "pile.toml"
     partial = tmp_path / "run.h5"
-    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", str(scene), "-o", str(partial),
-                             "--steps", "100000", "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)
+    proc = start_run([scene, "--steps", "100000"], partial)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr

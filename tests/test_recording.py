@@ -4,11 +4,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import start_run
 
 from blobcli import read_trajectory
 from blobcli.io.recording import blob_colors, read_positions
@@ -73,11 +73,10 @@ def test_replay_makes_the_same_recording_as_run(recorded):
     np.testing.assert_array_equal(a[1], b[1])
 
 
+@pytest.mark.slow
 def test_interrupted_run_leaves_a_readable_recording(tmp_path):
     out = tmp_path / "long.h5"
-    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", str(ROOT / "scenes" / "pile.toml"), "-o", str(out),
-                             "--steps", "100000", "--rerun", "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)
+    proc = start_run([ROOT / "scenes" / "pile.toml", "--steps", "100000", "--rerun"], out)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr

@@ -5,7 +5,14 @@ from pathlib import Path
 
 import pytest
 
-from blobcli.scene.schema import MAX_VERTICES, SceneError, load_scene, parse_scene, reference_markdown, resolved_toml
+from blobcli.scene.schema import (
+    MAX_VERTICES,
+    SceneError,
+    load_scene,
+    parse_scene,
+    reference_markdown,
+    resolved_toml,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 GOOD_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
@@ -136,6 +143,18 @@ def test_resolved_scene_round_trips_through_the_validator():
         assert again.settings.dt == sc.settings.dt and again.blobs == sc.blobs and again.statics == sc.statics
 
 
-def test_readme_scene_reference_is_generated_from_the_dataclasses():
-    readme = (ROOT / "README.md").read_text()
-    assert reference_markdown() in readme, "regenerate the README reference: python -m blobcli.scene.schema"
+def test_docs_scene_reference_is_generated_from_the_dataclasses():
+    docs = (ROOT / "docs" / "scenes.md").read_text()
+    assert reference_markdown() in docs, "regenerate docs/scenes.md's reference: python -m blobcli.scene.schema"
+
+
+def test_one_friction_given_is_also_the_static_friction():
+    sc = parse_scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\nfriction = 0.2\n"
+                     "[[static]]\nkind = \"plane\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\nfriction = 0.8\n", "<t>")
+    assert sc.blobs[0].static_friction == 0.2 and sc.statics[0].static_friction == 0.8
+    both = parse_scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\nfriction = 0.2\nstatic_friction = 0.3\n", "<t>")
+    assert both.blobs[0].static_friction == 0.3
+    neither = parse_scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n", "<t>")
+    assert (neither.blobs[0].friction, neither.blobs[0].static_friction) == (0.5, 0.6)
+    with pytest.raises(SceneError, match=r"static_friction: must be >= friction \(0.5\) \(got 0.4\)"):
+        parse_scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\nstatic_friction = 0.4\n", "<t>")

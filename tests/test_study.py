@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from blobcli import load_scene
 from blobcli.tools.study import LADDER, Point, cheapest, run_study
 
@@ -30,6 +32,7 @@ def test_cheapest_setting_meeting_a_tolerance():
     assert cheapest(pts, 0.001)["kot"] is None
 
 
+@pytest.mark.slow
 def test_study_command_writes_chart_and_csv(tmp_path):
     r = subprocess.run([sys.executable, "-m", "blobcli", "study", str(ROOT / "scenes" / "gish.toml"), "--methods", "kot",
                         "springs", "--duration", "0.3", "--tol", "0.5", "-o", str(tmp_path)],

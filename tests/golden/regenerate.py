@@ -16,9 +16,16 @@ ROOT = HERE.parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE.parent))
 
+from golden_cases import (  # noqa: E402
+    GOLDEN,
+    HASH_SCENE,
+    HASH_STEPS,
+    final_positions_hash,
+    version_key,
+)
+
 from blobcli import load_scene, simulate  # noqa: E402
 from blobcli.scene.schema import with_overrides  # noqa: E402
-from golden_cases import GOLDEN, HASH_SCENE, HASH_STEPS, final_positions_hash, version_key  # noqa: E402
 
 
 def main():
