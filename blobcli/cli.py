@@ -34,6 +34,23 @@ def _number(allow_zero: bool):
     return parse
 
 
+class _CommaList(argparse.Action):
+    """A list option that takes `--methods kot xpbd`, `--methods kot,xpbd` or both, checked
+    against `choices` (argparse checks the raw strings, so choices are checked here)."""
+
+    def __init__(self, *args, allowed=(), **kwargs):
+        super().__init__(*args, nargs="+", **kwargs)
+        self.allowed = tuple(allowed)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        items = [v for text in values for v in text.split(",") if v]
+        bad = [v for v in items if v not in self.allowed]
+        if bad or not items:
+            parser.error(f"argument {option_string}: invalid choice: {', '.join(map(repr, bad)) or 'none given'} "
+                         f"(choose from {', '.join(self.allowed)})")
+        setattr(namespace, self.dest, list(dict.fromkeys(items)))
+
+
 _positive_float = _number(allow_zero=False)
 _nonnegative_float = _number(allow_zero=True)
 
@@ -55,7 +72,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--rerun", nargs="?", const="", metavar="OUT.rrd",
                      help="also write a rerun recording (default: beside the trajectory, as .rrd)")
     run.add_argument("--resume", metavar="PARTIAL.h5",
-                     help="continue an interrupted run of this scene from its last frame (output defaults to that file)")
+                     help="continue an interrupted run of this scene from its last frame "
+                          "(output defaults to that file)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
     check = sub.add_parser("check", help="validate scenes and print them with every default filled in")
@@ -74,15 +92,16 @@ def parser() -> argparse.ArgumentParser:
     render.add_argument("--frames", type=_positive_int, default=6, metavar="K", help="frames side by side (default 6)")
 
     stress = sub.add_parser("stress", help="run the stress scenes with each method: pass or the reason it fails")
-    stress.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="M",
-                        help=f"methods to test (default: all of {', '.join(METHODS)})")
+    stress.add_argument("--methods", action=_CommaList, allowed=METHODS, default=list(METHODS), metavar="M",
+                        help=f"methods to test, space- or comma-separated (default: all of {','.join(METHODS)})")
     stress.add_argument("-o", "--output", default="outputs/stress", metavar="DIR",
                         help="where the table, CSV, stability map and runs go (default outputs/stress)")
     stress.add_argument("--quick", action="store_true", help="0.5 s runs and a 2 × 2 map (for smoke tests)")
 
     study = sub.add_parser("study", help="speed against accuracy per method: a work-precision chart and CSV")
     study.add_argument("scene", metavar="SCENE")
-    study.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="M")
+    study.add_argument("--methods", action=_CommaList, allowed=METHODS, default=list(METHODS), metavar="M",
+                       help=f"space- or comma-separated (default: all of {','.join(METHODS)})")
     study.add_argument("--tol", type=_positive_float, metavar="E",
                        help="print each method's cheapest setting with trajectory error <= E")
     study.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (default: the scene's)")

@@ -56,6 +56,7 @@ def versions() -> dict:
     """Versions and settings a bit-for-bit reproduction needs."""
     import llvmlite
     import numba
+
     from .. import __version__
     env = {k: os.environ.get(k, "") for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                                "PYTHONHASHSEED")}
@@ -180,7 +181,8 @@ class TrajectoryWriter:
             state.pos[...] = restart["position"][...]
             state.vel[...] = restart["velocity"][...]
             state.impact_speed[...] = restart["impact_speed"][...]
-            self.worst_area_error = _worst_area_error(f["observables/area/value"][1:keep], f["parameters/target_area"][...])
+            self.worst_area_error = _worst_area_error(f["observables/area/value"][1:keep],
+                                                      f["parameters/target_area"][...])
         return step
 
     def close(self, complete: bool, stopped: str = ""):
@@ -238,7 +240,7 @@ class Trajectory:
     scene: str
 
 
-def read_trajectory(path) -> Trajectory:
+def read_trajectory(path: str | Path) -> Trajectory:
     with h5py.File(path, "r") as f:
         pos = f["particles/blobs/position"]
         p = f["parameters"]

@@ -46,7 +46,8 @@ class RerunRecorder:
         self.target = np.abs(np.asarray(target_area))
         self.colors = blob_colors(len(self.offsets) - 1)
         # Closing index: each blob's ring followed by its first vertex again.
-        self.closed = np.concatenate([np.append(np.arange(o, e), o) for o, e in zip(self.offsets[:-1], self.offsets[1:])])
+        self.closed = np.concatenate([np.append(np.arange(o, e), o)
+                                      for o, e in zip(self.offsets[:-1], self.offsets[1:])])
         self.strip_ends = np.cumsum(np.diff(self.offsets) + 1)[:-1]
 
         lo, hi = first_positions.min(axis=0), first_positions.max(axis=0)
@@ -66,7 +67,8 @@ class RerunRecorder:
         self.rec.save(self.path, default_blueprint=blueprint)
         extent = 2.0 * max(hi[0] - lo[0], hi[1] - lo[1])
         for i, s in enumerate(scene.statics):
-            self.rec.log(f"world/statics/{i}", rr.LineStrips2D([COLLIDERS[s.kind].outline(s, extent)], colors=[[90, 90, 90, 255]],
+            outline = COLLIDERS[s.kind].outline(s, extent)
+            self.rec.log(f"world/statics/{i}", rr.LineStrips2D([outline], colors=[[90, 90, 90, 255]],
                                                                 radii=[0.01]), static=True)
         for series in ("area_error", "kinetic_energy"):
             self.rec.log(f"series/{series}", rr.SeriesLines(names=list(names), colors=self.colors), static=True)

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .h5md import TrajectoryWriter
+from ..scene.schema import Scene
 from ..sim.measure import blob_measures, first_runaway
 from ..sim.model import build, build_params
-from ..scene.schema import Scene
 from ..sim.pipeline import step
+from .h5md import TrajectoryWriter
 
 
 @dataclass
@@ -38,7 +38,8 @@ class RunResult:
 
     def summary(self) -> str:
         rate = self.steps / self.wall_time if self.wall_time > 0 else float("inf")
-        head = {"complete": "blobsim", "interrupted": "blobsim: interrupted", "runaway": "blobsim: stopped"}[self.status]
+        head = {"complete": "blobsim", "interrupted": "blobsim: interrupted",
+                "runaway": "blobsim: stopped"}[self.status]
         return (f"{head}: {self.steps} steps, {self.sim_time:.4g} s simulated in {self.wall_time:.3g} s "
                 f"({rate:.4g} steps/s), worst area error {self.worst_area_error:.2e}, wrote {self.path}")
 
@@ -61,7 +62,8 @@ class _StopFlag:
             signal.signal(s, handler)
 
 
-def simulate(scene: Scene, path=None, progress: bool = False, resume=None) -> RunResult:
+def simulate(scene: Scene, path: str | Path | None = None, progress: bool = False,
+             resume: str | Path | None = None) -> RunResult:
     """Run `scene` and write its trajectory to `path` (default: the scene's output path).
 
     With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new

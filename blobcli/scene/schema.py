@@ -1,7 +1,7 @@
 """The scene: what a user writes in TOML, validated into frozen dataclasses.
 
 Every scene key is one dataclass field below, with its default, unit and check (`key`).
-The validator, `blobsim check` and the README's scene reference all read these fields,
+The validator, `blobsim check` and the scene reference (docs/scenes.md) all read these fields,
 so a default has exactly one home. Errors collect into one `SceneError`, one line each:
 `file:line: blob[1].radius: must be > 0 (got -0.5)` (indices are 0-based).
 """
@@ -77,7 +77,8 @@ class SceneSettings:
     iterations: int = key(2, "", "solver iterations per substep", "int", at_least(1))
     gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
-    damping: float = key(2.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass (deformation and spin)", "float", nonnegative)
+    damping: float = key(2.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass "
+                         "(deformation and spin)", "float", nonnegative)
 
 
 @dataclass(frozen=True)
@@ -100,11 +101,14 @@ class BlobDef:
     velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
     pressure: float = key(1.0, "", "target area = pressure × rest area", "float", positive)
     compliance: float = key(2e-4, "m/N", "perimeter compliance α (XPBD); 0 = inextensible", "float", nonnegative)
-    area_compliance: float = key(0.0, "m²/N", "method xpbd: compliance α of the area constraint; 0 = hard", "float", nonnegative)
-    gas_pressure: float = key(20.0, "N/m", "method gas: pressure P₀ at the target area (P = P₀ A_target / A)", "float", positive)
+    area_compliance: float = key(0.0, "m²/N", "method xpbd: compliance α of the area constraint; 0 = hard", "float",
+                                 nonnegative)
+    gas_pressure: float = key(20.0, "N/m", "method gas: pressure P₀ at the target area (P = P₀ A_target / A)",
+                              "float", positive)
     spring_stiffness: float = key(2000.0, "N/m", "method springs: stiffness of the internal springs", "float", positive)
     friction: float = key(0.5, "", "kinetic (sliding) friction coefficient μ_k", "float", nonnegative)
-    static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction)", "float", nonnegative)
+    static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction); "
+                                 "default: `friction` when only that is given, else 0.6", "float", nonnegative)
     restitution: float = key(0.0, "", "bounciness e in [0, 1]", "float", unit_interval)
     grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", at_least(1))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
@@ -122,9 +126,11 @@ class StaticDef:
     size: tuple | None = key(None, "m", "box: [width, height]", "vec2", positive_vec)
     angle: float = key(0.0, "deg", "box: rotation, counter-clockwise", "float")
     radius: float | None = key(None, "m", "circle: radius", "float", positive)
-    points: tuple | None = key(None, "m", "polygon: simple polygon, concave allowed, either winding, solid inside", "points")
+    points: tuple | None = key(None, "m", "polygon: simple polygon, concave allowed, either winding, solid inside",
+                               "points")
     friction: float = key(0.5, "", "kinetic friction μ_k (combined with a blob's as √(μ₁μ₂))", "float", nonnegative)
-    static_friction: float = key(0.6, "", "static friction μ_s (combined as √(μ₁μ₂))", "float", nonnegative)
+    static_friction: float = key(0.6, "", "static friction μ_s (combined as √(μ₁μ₂)); "
+                                 "default: `friction` when only that is given, else 0.6", "float", nonnegative)
     restitution: float = key(0.0, "", "bounciness (combined with a blob's as the max)", "float", unit_interval)
 
 
@@ -296,11 +302,17 @@ def _table(cls, raw, path: tuple, problems: _Problems, allowed=None):
             problems.add(path + (f.name,), complaint, raw[f.name])
             ok = False
         values[f.name] = value
+    if "friction" in values and "static_friction" not in raw:
+        # One coefficient given: it holds at rest too (a slippery 0.2 surface stays slippery).
+        values["static_friction"] = values["friction"]
     return cls(**values) if ok else None
 
 
 def _check_polygon(points, path, problems: _Problems):
-    from ..geometry import first_crossing, signed_area  # numpy: only for scenes with polygons, so --help stays instant
+    from ..geometry import (  # numpy: only for scenes with polygons, so --help stays instant
+        first_crossing,
+        signed_area,
+    )
     crossing = first_crossing(points)
     if crossing:
         i, j = crossing
@@ -376,7 +388,9 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
             _check_blob(b, ("blob", i), problems)
             blob_defs.append(b)
 
-    from ..colliders import COLLIDERS  # numpy: imported when a scene is read, not for --help
+    from ..colliders import (
+        COLLIDERS,  # numpy: imported when a scene is read, not for --help
+    )
     static_defs = []
     for i, rs in enumerate(statics):
         path = ("static", i)
@@ -456,7 +470,7 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(text, source)
 
 
-# --- presentation: `blobsim check` and the README reference --------------------------------
+# --- presentation: `blobsim check` and docs/scenes.md --------------------------------------
 
 def _toml_value(v) -> str:
     if isinstance(v, str):
@@ -501,11 +515,11 @@ def resolved_toml(scene: Scene) -> str:
 
 
 def reference_markdown() -> str:
-    """The README's scene reference, generated from the dataclass fields."""
+    """The scene reference of docs/scenes.md, generated from the dataclass fields."""
     out = []
     for name, cls in TABLES.items():
         header = f"[[{name}]]" if name in ("blob", "static") else f"[{name}]"
-        out.append(f"#### `{header}`\n\n| key | default | unit | meaning |\n|---|---|---|---|")
+        out.append(f"### `{header}`\n\n| key | default | unit | meaning |\n|---|---|---|---|")
         for f in fields(cls):
             d = f.default
             if d is None:
@@ -519,5 +533,5 @@ def reference_markdown() -> str:
     return "\n".join(out)
 
 
-if __name__ == "__main__":  # python -m blobcli.scene.schema: print the README's scene reference
+if __name__ == "__main__":  # python -m blobcli.scene.schema: print the scene reference of docs/scenes.md
     print(reference_markdown(), end="")

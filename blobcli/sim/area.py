@@ -33,9 +33,9 @@ vertex of the parabola, moves the blob to the nearest area it can reach.
 import numba
 
 from ..jit import inline_kernel, kernel, stage_kernel
+from ..scene.schema import METHODS
 from .perimeter import solve_distance
 from .ring import next_in_ring, twice_ring_area
-from ..scene.schema import METHODS
 
 
 @inline_kernel

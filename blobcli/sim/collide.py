@@ -233,8 +233,10 @@ def _deep_pairs(pos, offsets, pairs, center, radius, deep):
         a, b = pairs[k, 0], pairs[k, 1]
         # A centre farther from the other's centre than its radius cannot be inside it.
         d2 = (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2
-        deep[k] = ((d2 <= radius[b] ** 2 and ring_contains(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
-                   or (d2 <= radius[a] ** 2 and ring_contains(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
+        deep[k] = ((d2 <= radius[b] ** 2
+                    and ring_contains(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
+                   or (d2 <= radius[a] ** 2
+                       and ring_contains(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
 
 
 @stage_kernel

@@ -3,6 +3,7 @@
 import numpy as np
 
 from ..jit import kernel
+from .model import Model, State
 from .ring import twice_ring_area
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
@@ -19,7 +20,7 @@ def _blob_measures(pos, vel, inv_mass, offsets, area, kinetic):
         kinetic[b] = 0.5 * ke
 
 
-def blob_measures(state, model):
+def blob_measures(state: State, model: Model) -> tuple[np.ndarray, np.ndarray]:
     """(signed area (B,) m², kinetic energy (B,) J) of every blob."""
     area = np.empty(model.blob_count)
     kinetic = np.empty(model.blob_count)
@@ -37,6 +38,6 @@ def _first_runaway(pos, limit):
     return -1
 
 
-def first_runaway(state) -> int:
+def first_runaway(state: State) -> int:
     """Index of the first vertex that is non-finite or beyond RUNAWAY, or -1."""
     return _first_runaway(state.pos, RUNAWAY)

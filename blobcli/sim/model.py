@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ring_next, signed_area
 from ..colliders import COLLIDERS, SOLVERS
+from ..geometry import ring_next, signed_area
 from ..scene.schema import BlobDef, Scene, StaticDef
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
@@ -88,8 +88,10 @@ class Model:
 
 @dataclass
 class State:
-    """What changes during a step. pos and vel are the state proper; the rest is scratch
-    rewritten every substep (kept here so a step allocates nothing)."""
+    """What changes during a step. pos and vel are the state proper (with impact_speed, what
+    /restart stores); the rest is scratch rewritten every substep, kept here so that the
+    per-vertex arrays are allocated once. The blob–blob broad phase still allocates its pair
+    lists (pairs, partners, strips) every substep, because their length changes."""
     pos: np.ndarray  # (N, 2) m
     vel: np.ndarray  # (N, 2) m/s
     prev: np.ndarray  # (N, 2) m, positions at the start of the substep
@@ -103,7 +105,8 @@ class State:
     # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
     center: np.ndarray  # (B, 2) m, vertex-average centres
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
-    edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m), 1/|edge|² (1/m²)
+    edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m),
+    #                    1/|edge|² (1/m²)
     pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
     partners: tuple  # each blob's partners, CSR: (start (B+1,), partner (2P,), pair index (2P,))
     strips: tuple  # blobs by vertical strip, for the parallel resolution: (strip_of (B,), start (S+1,), blobs (B,))
@@ -122,6 +125,7 @@ def blob_points(b: BlobDef) -> np.ndarray:
 
 
 def build_params(scene: Scene) -> Params:
+    """Time stepping and world settings of a validated scene."""
     s = scene.settings
     return Params(dt=s.dt, substeps=s.substeps, iterations=s.iterations,
                   gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,

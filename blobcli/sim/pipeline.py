@@ -8,6 +8,7 @@ a stage a scene does not need (damping off, no statics, one blob) is not run at 
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 from .area import AREA_METHODS
 from .collide import detect_blob_contacts, find_blob_pairs, resolve_blob_contacts
@@ -15,6 +16,8 @@ from .integrate import damp_relative, predict, restitution, update_velocities
 from .model import Model, Params, State
 from .perimeter import solve_perimeter
 from .statics import collide_statics
+
+Stage = Callable[[State, Model, Params, float], None]  # every stage: (state, model, params, h) -> None
 
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution")
@@ -47,7 +50,7 @@ def step(state: State, model: Model, params: Params, clock: dict | None = None) 
             run("restitution", restitution, state, model, params, h)    # leave statics at e × approach speed
 
 
-def _run(name, stage, *args):
+def _run(name: str, stage: Stage, *args) -> None:
     stage(*args)
 
 

@@ -86,9 +86,9 @@ def _median_time(fn, repeats: int, inner: int) -> float:
 
 
 def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict:
+    from ..scene.schema import parse_scene
     from ..sim.model import build, build_params
     from ..sim.pipeline import step
-    from ..scene.schema import parse_scene
     scene = parse_scene(scene_text(blobs, layout), f"bench-{layout}-{blobs}")
     model, state = build(scene)
     params = build_params(scene)
@@ -99,7 +99,8 @@ def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) ->
     n = model.vertex_count
     return {"blobs": blobs, "layout": layout, "vertices": n, "ms_per_step": sec * 1e3,
             "ms_per_substep": sec * 1e3 / params.substeps,
-            "vertex_substeps_per_s": n * params.substeps / sec, "ns_per_vertex_substep": sec * 1e9 / (n * params.substeps)}
+            "vertex_substeps_per_s": n * params.substeps / sec,
+            "ns_per_vertex_substep": sec * 1e9 / (n * params.substeps)}
 
 
 CORE_STAGES = ("predict", "perimeter", "area", "statics", "velocities")
@@ -290,14 +291,16 @@ def format_bench(r: dict) -> str:
     lines.append("")
     c = r["core"]
     lines.append(f"core substep (predict, perimeter, area, floor, velocities) at {c['blobs']} blobs: "
-                 f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep (target <= {t['core_ns_per_vertex_substep_1000']:g})")
+                 f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep "
+                 f"(target <= {t['core_ns_per_vertex_substep_1000']:g})")
     if ("piled", 1000) in rows:
         lines.append(f"piled substep at 1000 blobs: {rows[('piled', 1000)]['ms_per_substep']:.2f} ms "
                      f"(target <= {t['piled_ms_per_substep_1000']:g})")
     for layout in ("apart", "piled"):
         if (layout, 1000) in rows and (layout, 100) in rows:
             ratio = rows[(layout, 1000)]["ms_per_step"] / rows[(layout, 100)]["ms_per_step"]
-            lines.append(f"scaling, {layout}: 1000 blobs cost {ratio:.1f}× 100 blobs (target <= {t['scaling_1000_over_100']:g})")
+            lines.append(f"scaling, {layout}: 1000 blobs cost {ratio:.1f}× 100 blobs "
+                         f"(target <= {t['scaling_1000_over_100']:g})")
     st = r["stages"]
     lines.append(f"piled {st['blobs']} blobs, ms per step by stage: "
                  + ", ".join(f"{k} {v:.2f}" for k, v in st["ms_per_step"].items())

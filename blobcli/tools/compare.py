@@ -40,7 +40,8 @@ class Report:
         return self.first_difference is None and not self.notes
 
     def text(self) -> str:
-        tol = "exact (bit for bit)" if self.atol == 0 and self.rtol == 0 else f"atol {self.atol:g} m, rtol {self.rtol:g}"
+        exact = self.atol == 0 and self.rtol == 0
+        tol = "exact (bit for bit)" if exact else f"atol {self.atol:g} m, rtol {self.rtol:g}"
         lines = [f"compared {self.frames} frames of {self.a} and {self.b} ({tol})",
                  f"max deviation {self.max_deviation:.3e} m, rms {self.rms_deviation:.3e} m"]
         d = self.first_difference

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.h5md import read_trajectory
 from ..colliders import COLLIDERS
+from ..io.h5md import read_trajectory
 from ..io.recording import blob_colors
 from ..scene.schema import parse_scene
 

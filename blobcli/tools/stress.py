@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.h5md import read_trajectory
 from ..colliders import COLLIDERS
 from ..geometry import first_crossing, ring_areas
+from ..io.h5md import read_trajectory
 from ..scene.schema import METHODS, load_scene, parse_scene, with_overrides
 
 STRESS_DIR = Path(__file__).resolve().parent / "stress_scenes"
@@ -83,7 +83,8 @@ def detect_tunnelled(position, statics) -> str | None:
                 n = np.array([-t[1], t[0]])
                 d0, d1 = (position[f - 1] - a) @ n, (p - a) @ n
                 crossing = d0 * d1 < 0
-                u = ((position[f - 1] + (p - position[f - 1]) * (d0 / np.where(d0 != d1, d0 - d1, 1.0))[:, None]) - a) @ t
+                where = d0 / np.where(d0 != d1, d0 - d1, 1.0)  # fraction of the path at the line
+                u = ((position[f - 1] + (p - position[f - 1]) * where[:, None]) - a) @ t
                 bad = crossing & (u >= 0) & (u <= np.hypot(*(b - a)))
             else:
                 bad = COLLIDERS[s.kind].depth(p, s) > PENETRATION

@@ -164,5 +164,6 @@ def format_points(points) -> str:
     lines = [f"{'method':8s} {'setting':>16s} {'wall s':>8s} {'trajectory':>11s} {'area':>10s} {'perimeter':>10s}"]
     for p in points:
         lines.append(f"{p.method:8s} {p.label:>16s} {p.wall_time:8.3f} {p.trajectory_error:11.2e} "
-                     f"{p.area_error:10.2e} {p.perimeter_error:10.2e}" + ("" if p.status == "complete" else f"  {p.status}"))
+                     f"{p.area_error:10.2e} {p.perimeter_error:10.2e}"
+                     + ("" if p.status == "complete" else f"  {p.status}"))
     return "\n".join(lines)
