@@ -131,13 +131,27 @@ def _fail(problems) -> int:
     return 2
 
 
+def _output_problems(*pairs) -> list[str]:
+    """One line for each (path, kind) that cannot be written: kind "file" or "dir"."""
+    from .io.outputs import directory_problem, output_problem
+    out = []
+    for path, kind in pairs:
+        if path is None:
+            continue
+        problem = directory_problem(path) if kind == "dir" else output_problem(path, suffixes=(".partial",))
+        if problem:
+            out.append(f"{path}: {problem}")
+    return out
+
+
 def cmd_run(args) -> int:
+    from pathlib import Path
+
     from .scene.schema import SceneError, load_scene, with_overrides
     try:
-        scene = load_scene(args.scene)
+        scene = with_overrides(load_scene(args.scene), steps=args.steps, duration=args.duration, method=args.method)
     except SceneError as e:
         return _fail(e.problems)
-    scene = with_overrides(scene, steps=args.steps, duration=args.duration, method=args.method)
     output = args.output
     if args.resume:
         from .io.h5md import resume_problems
@@ -146,16 +160,24 @@ def cmd_run(args) -> int:
         if problems:
             return _fail(problems)
         output = output or args.resume
-    from pathlib import Path
+    output = Path(output) if output is not None else scene.output_path
     rerun = args.rerun if args.rerun is not None else scene.output.rerun
     if rerun == "":
-        rerun = str(Path(output or scene.output_path).with_suffix(".rrd"))
+        rerun = str(output.with_suffix(".rrd"))
+    problems = _output_problems((rerun or None, "file"))
+    if problems:
+        return _fail(problems)
+    for line in spawn_warnings(scene):
+        print(line, file=sys.stderr)
+    from .io import interrupts
     from .io.run import simulate
-    result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
-    if result.message:
-        print(f"blobsim: {result.message}", file=sys.stderr)
-    print(result.summary())
-    if rerun:
+    with interrupts.deferred():  # a signal now would only cut the summary: the file is whole either way
+        result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
+        interrupts.clear()
+        if result.message:
+            print(f"blobsim: {result.message}", file=sys.stderr)
+        print(result.summary())
+    if rerun and result.written:
         # Written from the finished file, not during the run: rerun's encoder threads slowed
         # the numba kernels 7× on two cores. An interrupted run's file holds every frame up
         # to the stop, so its recording does too.
@@ -165,36 +187,32 @@ def cmd_run(args) -> int:
     return result.exit_code
 
 
+def spawn_warnings(scene) -> list[str]:
+    from .scene.warnings import spawn_warnings as warnings_of
+    return [f"warning: {w}" for w in warnings_of(scene)]
+
+
 def cmd_check(args) -> int:
     from .scene.schema import SceneError, load_scene, resolved_toml
     problems = []
     for path in args.scenes:
         try:
-            print(resolved_toml(load_scene(path)))
+            scene = load_scene(path)
         except SceneError as e:
             problems += e.problems
+            continue
+        print(resolved_toml(scene))
+        for line in spawn_warnings(scene):
+            print(line, file=sys.stderr)
     return _fail(problems) if problems else 0
-
-
-def _trajectory_problem(path) -> str | None:
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            if "particles/blobs/position" not in f or "parameters/scene" not in f:
-                return f"{path}: not a blobsim trajectory"
-    except FileNotFoundError:
-        return f"{path}: no such file"
-    except OSError as e:
-        return f"{path}: not a readable HDF5 file ({e})"
-    return None
 
 
 def cmd_replay(args) -> int:
     from pathlib import Path
-    problem = _trajectory_problem(args.trajectory)
-    if problem:
-        return _fail([problem])
     out = args.output or str(Path(args.trajectory).with_suffix(".rrd"))
+    problems = _output_problems((out, "file"))
+    if problems:
+        return _fail(problems)
     from .io.recording import replay
     frames = replay(args.trajectory, out)
     print(f"blobsim: recorded {frames} frames of {args.trajectory} into {out}")
@@ -207,20 +225,26 @@ def cmd_view(args) -> int:
     import subprocess
     from pathlib import Path
     path = Path(args.file)
+    if not path.exists():
+        return _fail([f"{path}: no such file"])
+    if not path.is_file():
+        return _fail([f"{path}: is not a file (give a .rrd recording or a .h5 trajectory)"])
     if path.suffix == ".h5":
-        problem = _trajectory_problem(path)
-        if problem:
-            return _fail([problem])
-        from .io.recording import replay
         rrd = path.with_suffix(".rrd")
+        problems = _output_problems((rrd, "file"))
+        if problems:
+            return _fail(problems)
+        from .io.recording import replay
         replay(path, rrd)
         path = rrd
-    elif not path.exists():
-        return _fail([f"{path}: no such file"])
     viewer = shutil.which("rerun")
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or viewer is None:
-        print(f"blobsim: no display here; the recording is {path}. Open it on a machine with a display "
-              f"(pip install rerun-sdk) with: rerun {path}", file=sys.stderr)
+    if viewer is None:
+        print(f"blobsim: the rerun viewer is not on PATH (pip install rerun-sdk puts it there); "
+              f"the recording is {path}: open it with rerun {path}", file=sys.stderr)
+        return 0
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        print(f"blobsim: no display here (DISPLAY and WAYLAND_DISPLAY are unset); the recording is {path}. "
+              f"Open it on a machine with a display with: rerun {path}", file=sys.stderr)
         return 0
     subprocess.Popen([viewer, str(path)])
     print(f"blobsim: opened {path} in the rerun viewer")
@@ -229,16 +253,22 @@ def cmd_view(args) -> int:
 
 def cmd_render(args) -> int:
     from pathlib import Path
-    problem = _trajectory_problem(args.trajectory)
-    if problem:
-        return _fail([problem])
+    out = Path(args.output) if args.output else Path(args.trajectory).with_suffix(".png")
+    if out.suffix.lower() != ".png":
+        out = out.with_name(out.name + ".png")
+    problems = _output_problems((out, "file"))
+    if problems:
+        return _fail(problems)
     from .tools.render import render
-    out = render(args.trajectory, args.output or Path(args.trajectory).with_suffix(".png"), frames=args.frames)
+    out = render(args.trajectory, out, frames=args.frames)
     print(f"blobsim: drew {out}")
     return 0
 
 
 def cmd_stress(args) -> int:
+    problems = _output_problems((args.output, "dir"))
+    if problems:
+        return _fail(problems)
     from .tools.stress import run_stress
     result = run_stress(args.methods, args.output, args.quick)
     print(result["table"])
@@ -255,6 +285,9 @@ def cmd_study(args) -> int:
         scene = load_scene(args.scene)
     except SceneError as e:
         return _fail(e.problems)
+    problems = _output_problems((args.output, "dir"))
+    if problems:
+        return _fail(problems)
     from .tools.study import chart, cheapest, format_points, run_study, write_csv
     points = run_study(scene, args.methods, args.output, args.duration)
     out = Path(args.output)
@@ -271,6 +304,9 @@ def cmd_study(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    problems = _output_problems((args.json, "file"))
+    if problems:
+        return _fail(problems)
     from .tools.bench import main as bench_main
     return bench_main(args.quick, args.json)
 
@@ -294,15 +330,30 @@ COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay"
 
 
 def main(argv=None) -> int:
-    args = parser().parse_args(argv)
+    """Exit codes: 0 ok, 1 failed (runaway, a difference, an internal error), 2 bad input,
+    130 interrupted; one line on stderr, never a traceback (BLOBSIM_DEBUG=1 shows it)."""
+    import os
+    import warnings
+
+    from .io import interrupts
+    interrupts.install()
     try:
+        args = parser().parse_args(argv)
+        # Non-finite values are caught and reported by the run (runaway) and the readers.
+        warnings.simplefilter("ignore", RuntimeWarning)
         return COMMANDS[args.command](args)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, interrupts.Interrupted):
         print("blobsim: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    except Exception as e:  # noqa: BLE001 - the documented one-line contract of the command line
+        from .io.h5md import TrajectoryError
+        from .io.outputs import OutputError
+        if isinstance(e, (TrajectoryError, OutputError)):
+            return _fail([str(e)])
+        if os.environ.get("BLOBSIM_DEBUG"):
+            raise
+        print(f"blobsim: internal error: {type(e).__name__}: {e} (BLOBSIM_DEBUG=1 shows the traceback)",
+              file=sys.stderr)
+        return 1

@@ -163,7 +163,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
     rng = np.random.default_rng(seed)
     center = rng.uniform(0, spread, (blobs, 2))
     radius = rng.uniform(0.1, 1.0, blobs)
-    pairs = _find_pairs[True](center, radius)
+    pairs, _ = _find_pairs[True](center, radius, 10**9)
     from blobcli.sim.collide import BROAD_MARGIN
     expected = set()
     for a in range(blobs):
@@ -173,7 +173,7 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
                 expected.add((a, b))
     assert set(map(tuple, pairs.tolist())) == expected
     assert len(pairs) == len(expected)
-    np.testing.assert_array_equal(pairs, _find_pairs[False](center, radius))  # serial build: same order
+    np.testing.assert_array_equal(pairs, _find_pairs[False](center, radius, 10**9)[0])  # serial build: same order
 
 
 def test_collision_stages_do_not_run_with_one_blob(monkeypatch):

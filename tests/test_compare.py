@@ -184,7 +184,7 @@ def test_resume_refuses_another_scene_or_a_finished_run(tmp_path):
     r = blobsim("run", ROOT / "scenes" / "gish.toml", "--resume", done)
     assert r.returncode == 2 and "different scene text" in r.stderr
     r = blobsim("run", ROOT / "scenes" / "crusher.toml", "--resume", done, "--steps", "10")
-    assert r.returncode == 2 and "nothing to resume" in r.stderr
+    assert r.returncode == 2 and "the run is complete at step 10; give more --steps" in r.stderr
     r = blobsim("run", ROOT / "scenes" / "crusher.toml", "--resume", done, "--steps", "12", "--method", "kot", "-q")
     assert r.returncode == 0  # a finished run can be extended
 

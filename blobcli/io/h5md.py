@@ -1,25 +1,12 @@
-"""Trajectory files: H5MD 1.1, blobsim format version 1 (a contract; see the README).
+"""Trajectory files: H5MD 1.1, blobsim format version 1 (a contract: docs/output-format.md).
 
-    /                      attrs: complete (bool), blobsim_format (int), stopped (str)
-    /h5md                  attrs: version = [1, 1]
-        author             attrs: name
-        creator            attrs: name = "blobsim", version
-    /particles/blobs/
-        box                attrs: dimension = 2, boundary = ["none", "none"]
-        position/{value [frames, N, 2] float64 (m), step [frames] int64, time [frames] float64 (s)}
-    /observables/
-        area/{value [frames, B] (m², positive for the blob's own winding), step, time}
-        kinetic_energy/{value [frames, B] (J), step, time}
-    /parameters/
-        blob_offsets [B + 1] int64, blob_names [B] str, target_area [B] (m²), mass [B] (kg),
-        scene (str: the scene's TOML), attrs: dt, substeps, iterations, method, damping,
-        gravity, steps, every, source, and the versions a reproduction needs
-    /restart/              the exact state at the last recorded frame, for --resume:
-                           position [N, 2], velocity [N, 2], impact_speed [B], attr step
+The layout, `LAYOUT` below, is the one copy of the schema: docs/output-format.md shows it
+verbatim (a test keeps the two equal) and `trajectory_problems` checks every file read
+against it, so a crafted or damaged file is refused with one line instead of a traceback.
 
-Frames are buffered and written in blocks of about 4 MiB (and at least every
-FLUSH_SECONDS), into `<path>.partial`; `close` marks the file and renames it to `<path>`,
-so `<path>` is never a half-written file.
+Writing: frames are buffered and written in blocks of about 4 MiB (and at least every
+FLUSH_SECONDS) into `<path>.partial`, created exclusively (blobcli.io.outputs); only `close`
+marks the file, `complete = true` only for a run that finished, and renames it to `<path>`.
 """
 
 from __future__ import annotations
@@ -34,7 +21,44 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from .outputs import create_partial, publish
+
 FORMAT_VERSION = 1
+LAYOUT = """\
+/                            attrs: complete (bool), blobsim_format = 1, stopped (str: why a run ended early),
+                                    warnings (str: problems seen in the final state; may be absent)
+/h5md                        attrs: version = [1, 1]
+    author                   attrs: name
+    creator                  attrs: name = "blobsim", version
+/particles/blobs
+    box                      attrs: dimension = 2, boundary = ["none", "none"]
+    position/value           float64 [frames, vertices, 2]  (m)
+    position/step            int64   [frames]
+    position/time            float64 [frames]  (s, = step × dt)
+/observables
+    area/{value,step,time}            value float64 [frames, blobs]  (m², positive)
+    kinetic_energy/{value,step,time}  value float64 [frames, blobs]  (J)
+/parameters
+    blob_offsets             int64 [blobs + 1]: blob b owns vertices offsets[b]:offsets[b+1]
+    blob_names               str   [blobs]
+    target_area              float64 [blobs]  (m²)
+    mass                     float64 [blobs]  (kg)
+    scene                    str: the scene's TOML text
+      attrs: dt, substeps, iterations, method, damping, gravity, steps, every, source,
+             blobsim_version, python, numpy, numba, llvmlite, h5py, hdf5, platform, machine,
+             numba_threads, env_NUMBA_NUM_THREADS, env_OMP_NUM_THREADS, env_OPENBLAS_NUM_THREADS,
+             env_PYTHONHASHSEED
+/restart                     the exact state at the last recorded frame (for --resume)
+    position, velocity       float64 [vertices, 2]
+    impact_speed             float64 [blobs]: each blob's ongoing impact on statics (restitution)
+      attrs: step
+"""
+POSITION = "particles/blobs/position"
+AREA = "observables/area"
+KINETIC = "observables/kinetic_energy"
+SERIES = (POSITION, AREA, KINETIC)
+PARAMETERS = "parameters"
+RESTART = "restart"
 BLOCK_BYTES = 4 << 20  # frames per block: about this many bytes of positions
 FLUSH_SECONDS = 10.0  # and no block waits longer than this
 
@@ -66,14 +90,19 @@ def versions() -> dict:
             "numba_threads": numba.get_num_threads(), **{f"env_{k}": v for k, v in env.items()}}
 
 
+class TrajectoryError(Exception):
+    """A file that is not a readable blobsim trajectory; the message is one line."""
+
+
 class TrajectoryWriter:
-    """Streams frames of one run into an H5MD file."""
+    """Streams frames of one run into `<path>.partial`; `close` publishes it at `path`.
+
+    The caller holds the output lock (blobcli.io.outputs.OutputLock)."""
 
     def __init__(self, path, scene, model, params):
         from .. import __version__
         self.path = Path(path)
-        self.partial = self.path.with_name(self.path.name + ".partial")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.partial = create_partial(self.path)
         self.dt = params.dt
         n, b = model.vertex_count, model.blob_count
         frames = params.steps // params.every + 1  # expected; resumed or extended runs may add more
@@ -97,7 +126,7 @@ class TrajectoryWriter:
         self.area = _series(obs, "area", (b,), unit="m^2", chunk=self.block)
         self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
 
-        p = f.create_group("parameters")
+        p = f.create_group(PARAMETERS)
         p.create_dataset("blob_offsets", data=model.offsets)
         p.create_dataset("blob_names", data=np.array(model.names, dtype=object), dtype=h5py.string_dtype())
         p.create_dataset("target_area", data=np.abs(model.target_area))
@@ -145,53 +174,85 @@ class TrajectoryWriter:
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        restart = self.file.require_group("restart")
-        for name, data in (("position", self._pos[k - 1]), ("velocity", self._last_vel),
-                           ("impact_speed", self._last_impact)):
-            if name in restart:
-                restart[name][...] = data
-            else:
-                restart.create_dataset(name, data=data)
-        restart.attrs["step"] = steps[-1]
+        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, steps[-1])
         self.frames = stop
         self._count = 0
         self.file.flush()
         self._last_flush = time.monotonic()
 
-    def adopt(self, path, state) -> int:
-        """Resume: copy the frames of an interrupted run's file and load its last state.
+    def _write_restart(self, position, velocity, impact_speed, step):
+        restart = self.file.require_group(RESTART)
+        for name, data in (("position", position), ("velocity", velocity), ("impact_speed", impact_speed)):
+            if name in restart:
+                restart[name][...] = data
+            else:
+                restart.create_dataset(name, data=data)
+        restart.attrs["step"] = step
 
-        Returns the step to continue after. The file must come from the same scene and
-        settings (checked by the caller with `resume_problems`)."""
-        with h5py.File(path, "r") as f:
-            restart = f["restart"]
+    def adopt(self, source, state, stop_requested) -> int | None:
+        """Resume: copy the frames and restart state of `source` (checked by the caller with
+        `resume_problems`) and load that state. Returns the step to continue after, or None
+        when `stop_requested()` turned true while copying (then this file is to be abandoned)."""
+        with open_trajectory(source) as f:
+            restart = f[RESTART]
             step = int(restart.attrs["step"])
-            pos = f["particles/blobs/position"]
+            pos = f[POSITION]
             keep = int(np.searchsorted(pos["step"][...], step, side="right"))
             self.flush()
             for start in range(0, keep, self.block):
+                if stop_requested():
+                    return None
                 stop = min(start + self.block, keep)
-                for group, source in ((self.position, pos), (self.area, f["observables/area"]),
-                                      (self.kinetic, f["observables/kinetic_energy"])):
-                    for name in ("value", "step", "time"):
-                        ds = group[name]
+                for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC)):
+                    for key in ("value", "step", "time"):
+                        ds = group[key]
                         ds.resize(self.frames + stop - start, axis=0)
-                        ds[self.frames:] = source[name][start:stop]
+                        ds[self.frames:] = f[name][key][start:stop]
                 self.frames += stop - start
             state.pos[...] = restart["position"][...]
             state.vel[...] = restart["velocity"][...]
             state.impact_speed[...] = restart["impact_speed"][...]
-            self.worst_area_error = _worst_area_error(f["observables/area/value"][1:keep],
-                                                      f["parameters/target_area"][...])
+            # The restart state goes with the frames at once: a file resumed and stopped before
+            # its next recorded frame must still be resumable.
+            self._write_restart(state.pos, state.vel, state.impact_speed, step)
+            self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
+        self.file.flush()
         return step
 
-    def close(self, complete: bool, stopped: str = ""):
+    def close(self, complete: bool, stopped: str = "", warnings: str = ""):
         """Write what is buffered, mark the file and move it into place at `path`."""
         self.flush()
         self.file.attrs["complete"] = complete
         self.file.attrs["stopped"] = stopped
+        if warnings:
+            self.file.attrs["warnings"] = warnings
         self.file.close()
-        os.replace(self.partial, self.path)
+        publish(self.partial, self.path)
+
+    def abandon(self):
+        """Close and delete the .partial: nothing is published, `path` is left as it was."""
+        try:
+            self.file.close()
+        finally:
+            self.partial.unlink(missing_ok=True)
+
+    def salvage(self, reason: str) -> str:
+        """After a failed write (disk full): keep the .partial if it is still a readable file,
+        else remove it. Returns a sentence saying which, for the user."""
+        try:
+            self.file.close()
+        except Exception:  # noqa: BLE001 - the file is already broken; what matters is below
+            pass
+        try:
+            with h5py.File(self.partial, "r") as f:
+                frames = len(f[POSITION]["step"])
+            with h5py.File(self.partial, "r+") as f:
+                f.attrs["complete"] = False
+                f.attrs["stopped"] = reason
+            return f"the {frames} frames written before it are in {self.partial} (readable, complete = false)"
+        except Exception:  # noqa: BLE001 - unreadable: it would only fill the disk
+            self.partial.unlink(missing_ok=True)
+            return f"{self.partial} was unreadable and has been removed"
 
 
 def _worst_area_error(area, target) -> float:
@@ -199,28 +260,114 @@ def _worst_area_error(area, target) -> float:
     return float(np.max(np.abs(area - target) / target, initial=0.0))
 
 
-def resume_problems(path, scene, params) -> list[str]:
-    """Why `path` cannot be resumed with this scene and these settings (empty: it can)."""
+def _shape_problem(f, name, shape, kinds="f") -> str | None:
+    """Why dataset `name` is missing or not of `shape` (None entries: any length) and kind."""
+    obj = f.get(name)
+    if not isinstance(obj, h5py.Dataset):
+        return f"{name} is missing"
+    if len(obj.shape) != len(shape) or any(s is not None and s != o for s, o in zip(shape, obj.shape)):
+        return f"{name} has shape {obj.shape}, expected {tuple('*' if s is None else s for s in shape)}"
+    if obj.dtype.kind not in kinds:
+        return f"{name} has type {obj.dtype}"
+    return None
+
+
+def trajectory_problems(f, need_restart: bool = False) -> list[str]:
+    """Every way the open file `f` departs from LAYOUT that a reader would trip on."""
+    attrs = f.attrs
+    if "blobsim_format" not in attrs or "complete" not in attrs:
+        return ["root attributes blobsim_format and complete are missing"]
+    if int(np.asarray(attrs["blobsim_format"]).flat[0]) != FORMAT_VERSION:
+        return [f"blobsim format {attrs['blobsim_format']} (this blobsim reads format {FORMAT_VERSION})"]
+    p = PARAMETERS
+    first = [_shape_problem(f, f"{p}/blob_offsets", (None,), "iu"),
+             _shape_problem(f, f"{POSITION}/value", (None, None, 2))]
+    if any(first):
+        return [x for x in first if x]
+    offsets = f[f"{p}/blob_offsets"][...]
+    frames, n = f[f"{POSITION}/value"].shape[:2]
+    b = len(offsets) - 1
+    problems = []
+    if b < 1 or offsets[0] != 0 or offsets[-1] != n or np.any(np.diff(offsets) < 3):
+        problems.append(f"{p}/blob_offsets do not split the {n} vertices into rings of 3 or more")
+    for name, shape, kinds in ((f"{POSITION}/step", (frames,), "iu"), (f"{POSITION}/time", (frames,), "f"),
+                               (f"{AREA}/value", (frames, b), "f"), (f"{AREA}/step", (frames,), "iu"),
+                               (f"{KINETIC}/value", (frames, b), "f"), (f"{KINETIC}/step", (frames,), "iu"),
+                               (f"{p}/blob_names", (b,), "OSU"), (f"{p}/target_area", (b,), "f"),
+                               (f"{p}/mass", (b,), "f"), (f"{p}/scene", (), "OSU")):
+        problems.append(_shape_problem(f, name, shape, kinds))
+    if frames == 0:
+        problems.append("it holds no frames")
+    for key in ("dt", "substeps", "iterations", "method", "every", "steps"):
+        if key not in f[p].attrs:
+            problems.append(f"{p} attribute {key} is missing")
+    if "dt" in f[p].attrs and not (np.isfinite(f[p].attrs["dt"]) and f[p].attrs["dt"] > 0):
+        problems.append(f"{p} attribute dt is not a positive number")
+    if need_restart or RESTART in f:
+        problems += [_shape_problem(f, f"{RESTART}/position", (n, 2)), _shape_problem(f, f"{RESTART}/velocity", (n, 2)),
+                     _shape_problem(f, f"{RESTART}/impact_speed", (b,))]
+        if RESTART in f and "step" not in f[RESTART].attrs:
+            problems.append(f"{RESTART} attribute step is missing")
+    return [x for x in problems if x]
+
+
+def open_trajectory(path, need_restart: bool = False) -> h5py.File:
+    """Open a trajectory for reading, checked against LAYOUT; raise TrajectoryError (one line)."""
     try:
         f = h5py.File(path, "r")
     except FileNotFoundError:
-        return [f"{path}: no such file"]
+        raise TrajectoryError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise TrajectoryError(f"{path}: is a directory, not a trajectory file") from None
     except OSError as e:
-        return [f"{path}: not a readable HDF5 file ({e})"]
+        raise TrajectoryError(f"{path}: not a readable HDF5 file ({str(e).split(';')[0]})") from None
+    try:
+        problems = trajectory_problems(f, need_restart)
+    except Exception as e:  # noqa: BLE001 - a byte-flipped file can fail in HDF5 itself
+        problems = [f"unreadable ({type(e).__name__}: {e})"]
+    if problems:
+        f.close()
+        raise TrajectoryError(f"{path}: not a usable blobsim trajectory: {'; '.join(problems[:3])}")
+    return f
+
+
+def text(value) -> str:
+    """A string read from HDF5 (bytes or str) as str."""
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def resume_problems(path, scene, params) -> list[str]:
+    """Why `path` cannot be resumed with this scene and these settings (empty: it can)."""
+    try:
+        f = open_trajectory(path, need_restart=True)
+    except TrajectoryError as e:
+        return [str(e)]
     with f:
-        if "restart" not in f or "parameters" not in f:
-            return [f"{path}: not a blobsim trajectory with a restart state"]
-        p = f["parameters"]
+        p = f[PARAMETERS]
         problems = []
-        if p["scene"][()].decode() != scene.text:
+        if text(p["scene"][()]) != scene.text:
             problems.append(f"{path}: was run from a different scene text than {scene.source}")
         for key in ("dt", "substeps", "iterations", "method", "every"):
             was, now = p.attrs[key], getattr(params, key)
             if was != now:
                 problems.append(f"{path}: was run with {key} = {was}, not {now}")
-        if bool(f.attrs["complete"]) and int(f["restart"].attrs["step"]) >= params.steps:
-            problems.append(f"{path}: run is complete; nothing to resume")
+        complete = bool(f.attrs["complete"])
+        last = int(p.attrs["steps"]) if complete else int(f[RESTART].attrs["step"])
+        if params.steps <= last:
+            problems.append(f"{path}: the run {'is complete at' if complete else 'already reached'} step {last}; "
+                            f"give more --steps (got {params.steps}) to extend it")
         return problems
+
+
+def stored_scene(f, path):
+    """The validated scene stored in an open trajectory file; TrajectoryError if it is not valid."""
+    from ..scene.schema import SceneError, parse_scene
+    try:
+        return parse_scene(text(f[PARAMETERS]["scene"][()]), str(path))
+    except SceneError as e:
+        raise TrajectoryError(f"{path}: its stored scene is not valid: {e.problems[0]}") from None
+    except UnicodeDecodeError:
+        raise TrajectoryError(f"{path}: its stored scene is not UTF-8 text") from None
 
 
 @dataclass
@@ -241,12 +388,12 @@ class Trajectory:
 
 
 def read_trajectory(path: str | Path) -> Trajectory:
-    with h5py.File(path, "r") as f:
-        pos = f["particles/blobs/position"]
-        p = f["parameters"]
+    """Read a whole trajectory file; raise TrajectoryError if it is not one."""
+    with open_trajectory(path) as f:
+        pos = f[POSITION]
+        p = f[PARAMETERS]
         return Trajectory(position=pos["value"][...], step=pos["step"][...], time=pos["time"][...],
-                          offsets=p["blob_offsets"][...], names=[s.decode() for s in p["blob_names"][...]],
-                          area=f["observables/area/value"][...],
-                          kinetic_energy=f["observables/kinetic_energy/value"][...],
+                          offsets=p["blob_offsets"][...], names=[text(s) for s in p["blob_names"][...]],
+                          area=f[AREA]["value"][...], kinetic_energy=f[KINETIC]["value"][...],
                           target_area=p["target_area"][...], mass=p["mass"][...], complete=bool(f.attrs["complete"]),
-                          attrs=dict(p.attrs), scene=p["scene"][()].decode())
+                          attrs=dict(p.attrs), scene=text(p["scene"][()]))

@@ -112,15 +112,13 @@ class RerunRecorder:
 
 def replay(h5_path, rrd_path) -> int:
     """Write the recording of an existing trajectory file, without simulating. Returns frames."""
-    import h5py
-
-    from ..scene.schema import parse_scene
-    with h5py.File(h5_path, "r") as f:
-        p = f["parameters"]
-        scene = parse_scene(p["scene"][()].decode(), str(h5_path))
-        pos = f["particles/blobs/position"]
-        area, kinetic = f["observables/area/value"], f["observables/kinetic_energy/value"]
-        recorder = RerunRecorder(rrd_path, scene, p["blob_offsets"][...], [n.decode() for n in p["blob_names"][...]],
+    from .h5md import AREA, KINETIC, PARAMETERS, POSITION, open_trajectory, stored_scene, text
+    with open_trajectory(h5_path) as f:
+        p = f[PARAMETERS]
+        scene = stored_scene(f, h5_path)
+        pos = f[POSITION]
+        area, kinetic = f[AREA]["value"], f[KINETIC]["value"]
+        recorder = RerunRecorder(rrd_path, scene, p["blob_offsets"][...], [text(n) for n in p["blob_names"][...]],
                                  p["target_area"][...], float(p.attrs["dt"]), pos["value"][0])
         steps = pos["step"][...]
         try:

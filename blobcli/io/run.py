@@ -1,13 +1,20 @@
 """Running a scene to a trajectory file: the loop around `step`.
 
 The loop records frame 0 and every `every`-th step, checks for runaway positions after
-every step, and stops cleanly at a step boundary on SIGINT or SIGTERM: the frames
-computed so far are always written, and `<path>` always holds a readable file.
+every step, and stops cleanly at a step boundary on SIGINT or SIGTERM. What a run leaves:
+
+- finished: `<path>` with complete = true (and `warnings` if blobs ended inside out or
+  self-intersecting);
+- interrupted, runaway, or failed inside the loop: `<path>` with every frame computed so far
+  and complete = false, the reason in `stopped`;
+- interrupted before the first step: nothing new (an older `<path>` is left as it was);
+- an in-place `--resume` interrupted while the old frames are copied: the original, unchanged;
+- a failed write (disk full): the `.partial` kept and named if readable, else removed;
+- killed (SIGKILL): `<path>.partial`, never a half-written `<path>`.
 """
 
 from __future__ import annotations
 
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -16,10 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from ..scene.schema import Scene
-from ..sim.measure import blob_measures, first_runaway
-from ..sim.model import build, build_params
+from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
+from ..sim.model import SimulationError, build, build_params
 from ..sim.pipeline import step
+from . import interrupts
 from .h5md import TrajectoryWriter
+from .outputs import OutputError, OutputLock, output_problem
+
+PROGRESS_SECONDS = 0.25  # the progress bar is redrawn at most this often
 
 
 @dataclass
@@ -29,37 +40,23 @@ class RunResult:
     sim_time: float  # s
     wall_time: float  # s
     worst_area_error: float  # max over recorded frames after frame 0, over blobs, of |A - A_target| / |A_target|
-    status: str  # "complete", "interrupted" or "runaway"
+    status: str  # "complete", "interrupted", "runaway" or "failed"
     message: str = ""
+    warning: str = ""  # blobs that ended inside out or self-intersecting
+    written: bool = True  # False: nothing was published at `path`
 
     @property
     def exit_code(self) -> int:
-        return {"complete": 0, "runaway": 1, "interrupted": 130}[self.status]
+        return {"complete": 0, "runaway": 1, "failed": 1, "interrupted": 130}[self.status]
 
     def summary(self) -> str:
         rate = self.steps / self.wall_time if self.wall_time > 0 else float("inf")
         head = {"complete": "blobsim", "interrupted": "blobsim: interrupted",
-                "runaway": "blobsim: stopped"}[self.status]
-        return (f"{head}: {self.steps} steps, {self.sim_time:.4g} s simulated in {self.wall_time:.3g} s "
-                f"({rate:.4g} steps/s), worst area error {self.worst_area_error:.2e}, wrote {self.path}")
-
-
-class _StopFlag:
-    """Turns SIGINT/SIGTERM into a flag the loop reads between steps."""
-
-    def __init__(self):
-        self.signal = None
-
-    def __enter__(self):
-        self._old = {s: signal.signal(s, self._set) for s in (signal.SIGINT, signal.SIGTERM)}
-        return self
-
-    def _set(self, signum, frame):
-        self.signal = signum
-
-    def __exit__(self, *exc):
-        for s, handler in self._old.items():
-            signal.signal(s, handler)
+                "runaway": "blobsim: stopped", "failed": "blobsim: failed"}[self.status]
+        where = f"wrote {self.path}" if self.written else "wrote nothing"
+        line = (f"{head}: {self.steps} steps, {self.sim_time:.4g} s simulated in {self.wall_time:.3g} s "
+                f"({rate:.4g} steps/s), worst area error {self.worst_area_error:.2e}, {where}")
+        return line + (f"; warning: {self.warning}" if self.warning else "")
 
 
 def simulate(scene: Scene, path: str | Path | None = None, progress: bool = False,
@@ -68,8 +65,18 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
 
     With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new
     file starts with that run's frames and continues from its last state: the result is
-    bit for bit the trajectory of a run that was never interrupted."""
+    bit for bit the trajectory of a run that was never interrupted. Raises OutputError
+    (before any work) when `path` cannot be written or another run holds it."""
     path = Path(path) if path is not None else scene.output_path
+    problem = output_problem(path)
+    if problem:
+        raise OutputError(f"{path}: {problem}")
+    with interrupts.deferred(), OutputLock(path):
+        interrupts.clear()
+        return _run_locked(scene, path, progress, resume)
+
+
+def _run_locked(scene, path, progress, resume) -> RunResult:
     model, state = build(scene)
     params = build_params(scene)
     target = np.abs(model.target_area)
@@ -83,43 +90,70 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
             worst = max(worst, float(np.max(np.abs(np.abs(area) - target) / target)))
         writer.append(n, state, area, kinetic)
 
+    def result(status, message="", warning="", written=True):
+        return RunResult(path=path, steps=done, sim_time=done * params.dt, wall_time=time.perf_counter() - start,
+                         worst_area_error=worst, status=status, message=message, warning=warning, written=written)
+
     bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=params.steps, unit="step", file=sys.stderr, mininterval=0.25, leave=False)
     status, message, done = "complete", "", 0
     start = time.perf_counter()
     try:
         if resume is not None:
-            done = writer.adopt(resume, state)
+            done = writer.adopt(resume, state, interrupts.pending)
+            if done is None:  # stopped while copying: the original stays as it was
+                writer.abandon()
+                return result("interrupted", f"interrupted while copying the frames of {resume}; it is unchanged",
+                              written=False)
             worst = writer.worst_area_error
         else:
             record(0)
-        if bar is not None:
-            bar.update(done)
-        with _StopFlag() as stop:
-            for n in range(done + 1, params.steps + 1):
-                step(state, model, params)
-                bad = first_runaway(state)
-                if bad >= 0:
-                    blob = int(np.searchsorted(model.offsets, bad, side="right") - 1)
-                    status = "runaway"
-                    message = (f"step {n}: blob {blob} ({model.names[blob]}) vertex {bad - model.offsets[blob]} "
-                               f"is at {state.pos[bad].tolist()}: non-finite or beyond 1e6 m")
-                    break
-                done = n
-                if n % params.every == 0:
-                    record(n)
-                if bar is not None and n % 64 == 0:
-                    bar.update(64)
-                if stop.signal is not None:
-                    status = "interrupted"
-                    message = f"stopped by signal {stop.signal} after step {n}"
-                    break
+        first = done
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=params.steps, initial=done, unit="step", file=sys.stderr, mininterval=PROGRESS_SECONDS,
+                       leave=False)
+        for n in range(done + 1, params.steps + 1):
+            if interrupts.pending() is not None:
+                break
+            step(state, model, params)
+            bad = first_runaway(state)
+            if bad >= 0:
+                blob = int(np.searchsorted(model.offsets, bad, side="right") - 1)
+                status = "runaway"
+                message = (f"step {n}: blob {blob} ({model.names[blob]}) vertex {bad - model.offsets[blob]} "
+                           f"is at {state.pos[bad].tolist()}: non-finite or beyond {RUNAWAY:g} m")
+                break
+            done = n
+            if n % params.every == 0:
+                record(n)
+            if bar is not None:
+                bar.update(1)
+        if status == "complete" and interrupts.pending() is not None:
+            status = "interrupted"
+            message = f"stopped by signal {interrupts.pending()} after step {done}"
+            if done == first and resume is None:  # not one step computed: keep whatever was there
+                writer.abandon()
+                return result(status, f"interrupted before the first step; {path} was not written", written=False)
+        warning = shape_warning(state, model) if status == "complete" else ""
+    except SimulationError as e:
+        status, message, warning = "failed", f"step {done + 1}: {e}", ""
+    except MemoryError:
+        status, message, warning = "failed", f"step {done + 1}: out of memory", ""
+    except OSError as e:  # the file system refused a write (disk full, quota, I/O error)
+        return _write_failed(writer, e, result)
+    except BaseException as e:  # a bug: keep the frames, marked incomplete, then let it surface
+        writer.close(complete=False, stopped=f"step {done + 1}: {type(e).__name__}: {e}")
+        raise
     finally:
         if bar is not None:
             bar.close()
-        wall = time.perf_counter() - start
-        writer.close(complete=status == "complete", stopped=message)
-    return RunResult(path=path, steps=done, sim_time=done * params.dt, wall_time=wall,
-                     worst_area_error=worst, status=status, message=message)
+    try:
+        writer.close(complete=status == "complete", stopped=message, warnings=warning)
+    except OSError as e:
+        return _write_failed(writer, e, result)
+    return result(status, message, warning)
+
+
+def _write_failed(writer, error: OSError, result) -> RunResult:
+    kept = writer.salvage(f"write failed: {error}")
+    return result("failed", f"cannot write {writer.partial} ({error.strerror or error}); {kept}", written=False)

@@ -19,6 +19,16 @@ MAX_SCENE_BYTES = 4 * 1024 * 1024  # a scene file larger than this is refused un
 MAX_VERTICES = 2_000_000  # total vertices after grids: ~0.4 GB of state arrays
 MAX_BLOBS = 200_000
 MAX_BLOB_VERTICES = 100_000  # one blob's ring (its area sums run in one thread)
+MAX_POLYGON_POINTS = 5_000  # explicit `points`: the self-crossing check is O(n²) (~2 s at the limit)
+MAX_STEPS = 1_000_000_000  # steps of one run (190 days of simulated time at dt = 1/60 s)
+MAX_SUBSTEPS = 1_000
+MAX_ITERATIONS = 1_000
+MAX_STEP_WORK = 4_000_000_000  # substeps × iterations × vertices: one step stays seconds long, so
+#                                Ctrl-C (checked between steps) stays prompt
+MIN_DT = 1e-9  # s
+MIN_LENGTH = 1e-6  # m: radii, sizes and segment lengths; smaller shapes lose their area to round-off
+MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no blob may start there
+MAX_NAME = 100  # characters of a scene or blob name (the scene name becomes a file name)
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods; blobcli.area.AREA_METHODS has the same names
 
@@ -45,6 +55,26 @@ def at_least(n):
     return lambda v: None if v >= n else f"must be >= {n}"
 
 
+def between(lo, hi):
+    return lambda v: f"must be >= {lo}" if v < lo else f"must be <= {hi:,}" if v > hi else None
+
+
+def length(v):
+    return None if v >= MIN_LENGTH else "must be > 0" if v <= 0 else f"must be >= {MIN_LENGTH:g} m"
+
+
+def time_step(v):
+    return None if v >= MIN_DT else "must be > 0" if v <= 0 else f"must be >= {MIN_DT:g} s"
+
+
+def file_name(v):
+    if len(v) > MAX_NAME:
+        return f"must be at most {MAX_NAME} characters"
+    if "/" in v or "\\" in v or v in (".", ".."):
+        return "must not contain / or \\ or be . or .. (it names files)"
+    return None
+
+
 def unit_interval(v):
     return None if 0 <= v <= 1 else "must be in [0, 1]"
 
@@ -69,12 +99,12 @@ def key(default, unit: str, doc: str, kind: str, check=None):
 @dataclass(frozen=True)
 class SceneSettings:
     """`[scene]`: time stepping and the world."""
-    name: str | None = key(None, "", "scene name; default: the file's stem", "str")
+    name: str | None = key(None, "", "scene name; default: the file's stem", "str", file_name)
     duration: float | None = key(None, "s", "simulated time; default 5 s unless `steps` is given", "float", positive)
-    steps: int | None = key(None, "", "number of steps (instead of `duration`)", "int", at_least(1))
-    dt: float = key(1 / 60, "s", "fixed time step", "float", positive)
-    substeps: int = key(4, "", "substeps per step (h = dt / substeps)", "int", at_least(1))
-    iterations: int = key(2, "", "solver iterations per substep", "int", at_least(1))
+    steps: int | None = key(None, "", "number of steps (instead of `duration`)", "int", between(1, MAX_STEPS))
+    dt: float = key(1 / 60, "s", "fixed time step", "float", time_step)
+    substeps: int = key(4, "", "substeps per step (h = dt / substeps)", "int", between(1, MAX_SUBSTEPS))
+    iterations: int = key(2, "", "solver iterations per substep", "int", between(1, MAX_ITERATIONS))
     gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
     damping: float = key(2.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass "
@@ -85,17 +115,18 @@ class SceneSettings:
 class OutputSettings:
     """`[output]`: where the trajectory goes."""
     path: str | None = key(None, "", "HDF5 file; default outputs/<name>.h5", "str")
-    every: int = key(1, "steps", "record every k-th step (frame 0 is the initial state)", "int", at_least(1))
+    every: int = key(1, "steps", "record every k-th step (frame 0 is the initial state)", "int",
+                     between(1, MAX_STEPS))
     rerun: str | None = key(None, "", "also write a rerun recording (.rrd) here; default: none", "str")
 
 
 @dataclass(frozen=True)
 class BlobDef:
     """`[[blob]]`: one blob, or a grid of copies of it."""
-    name: str | None = key(None, "", "name; default blob<i>; grid copies get _<ix>_<iy>", "str")
+    name: str | None = key(None, "", "name; default blob<i>; grid copies get _<ix>_<iy>", "str", file_name)
     center: tuple | None = key(None, "m", "centre of a circular ring (with `radius`)", "vec2")
-    radius: float | None = key(None, "m", "radius of a circular ring", "float", positive)
-    vertices: int = key(32, "", "vertex count of a circular ring", "int", at_least(3))
+    radius: float | None = key(None, "m", "radius of a circular ring", "float", length)
+    vertices: int = key(32, "", "vertex count of a circular ring", "int", between(3, MAX_BLOB_VERTICES))
     points: tuple | None = key(None, "m", "explicit simple polygon, either winding (instead of a ring)", "points")
     mass: float = key(1.0, "kg", "total mass, spread evenly over the vertices", "float", positive)
     velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
@@ -110,7 +141,7 @@ class BlobDef:
     static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction); "
                                  "default: `friction` when only that is given, else 0.6", "float", nonnegative)
     restitution: float = key(0.0, "", "bounciness e in [0, 1]", "float", unit_interval)
-    grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", at_least(1))
+    grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", between(1, MAX_BLOBS))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
 
 
@@ -123,9 +154,9 @@ class StaticDef:
     a: tuple | None = key(None, "m", "segment: first end (zero thickness, solid from both sides)", "vec2")
     b: tuple | None = key(None, "m", "segment: second end", "vec2")
     center: tuple | None = key(None, "m", "box, circle: centre", "vec2")
-    size: tuple | None = key(None, "m", "box: [width, height]", "vec2", positive_vec)
+    size: tuple | None = key(None, "m", "box: [width, height]", "vec2", lambda v: length(min(v)))
     angle: float = key(0.0, "deg", "box: rotation, counter-clockwise", "float")
-    radius: float | None = key(None, "m", "circle: radius", "float", positive)
+    radius: float | None = key(None, "m", "circle: radius", "float", length)
     points: tuple | None = key(None, "m", "polygon: simple polygon, concave allowed, either winding, solid inside",
                                "points")
     friction: float = key(0.5, "", "kinetic friction μ_k (combined with a blob's as √(μ₁μ₂))", "float", nonnegative)
@@ -177,7 +208,7 @@ def blob_vertex_count(b: BlobDef) -> int:
 
 
 def with_overrides(scene: Scene, *, steps=None, duration=None, method=None) -> Scene:
-    """The scene with command-line overrides applied (already validated by the CLI)."""
+    """The scene with command-line overrides applied; SceneError if the run they ask for is too long."""
     s = scene.settings
     if steps is not None:
         s = replace(s, steps=steps, duration=None)
@@ -185,7 +216,12 @@ def with_overrides(scene: Scene, *, steps=None, duration=None, method=None) -> S
         s = replace(s, duration=duration, steps=None)
     if method is not None:
         s = replace(s, method=method)
-    return replace(scene, settings=s)
+    scene = replace(scene, settings=s)
+    problems = [f"{scene.source}: {'--steps' if steps is not None else '--duration'}: {message}"
+                for _, message in run_length_problems(scene)]
+    if problems:
+        raise SceneError(problems)
+    return scene
 
 
 # --- loading -----------------------------------------------------------------------------
@@ -225,7 +261,15 @@ def _number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _coerce(kind: str, v, path, problems: _Problems):
+def _finite(x) -> bool:
+    """Finite as a float64 (a 400-digit integer is not)."""
+    try:
+        return math.isfinite(float(x))
+    except OverflowError:
+        return False
+
+
+def _coerce(kind: str, v, path, problems: _Problems, unit: str = ""):
     """Check a raw TOML value against a key kind; return the typed value or None."""
     def bad(message):
         problems.add(path, message, v)
@@ -233,6 +277,8 @@ def _coerce(kind: str, v, path, problems: _Problems):
     if kind == "str":
         if not isinstance(v, str):
             return bad("must be a string")
+        if any(ord(c) < 32 or ord(c) == 127 for c in v):
+            return bad("must not contain control characters (NUL, newline, ...)")
         return v
     if kind == "int":
         if isinstance(v, bool) or not isinstance(v, int):
@@ -241,7 +287,7 @@ def _coerce(kind: str, v, path, problems: _Problems):
     if kind == "float":
         if not _number(v):
             return bad("must be a number")
-        if not math.isfinite(v):
+        if not _finite(v):
             return bad("must be finite")
         return float(v)
     if kind in ("vec2", "int2"):
@@ -253,15 +299,21 @@ def _coerce(kind: str, v, path, problems: _Problems):
             return tuple(v)
         if not all(_number(x) for x in v):
             return bad("must be a list of 2 numbers")
-        if not all(math.isfinite(x) for x in v):
+        if not all(_finite(x) for x in v):
             return bad("must be finite")
+        if unit == "m" and max(abs(float(x)) for x in v) > MAX_COORDINATE:
+            return bad(f"must be within ±{MAX_COORDINATE:g} m (positions beyond stop a run)")
         return (float(v[0]), float(v[1]))
     if kind == "points":
         if not isinstance(v, list) or len(v) < 3:
             return bad("must be a list of at least 3 [x, y] points")
+        if len(v) > MAX_POLYGON_POINTS:
+            problems.add(path, f"at most {MAX_POLYGON_POINTS:,} points (use center + radius + vertices for "
+                         f"larger rings)", len(v))
+            return None
         out = []
         for i, p in enumerate(v):
-            q = _coerce("vec2", p, path + (i,), problems)
+            q = _coerce("vec2", p, path + (i,), problems, "m")
             if q is None:
                 return None
             out.append(q)
@@ -289,7 +341,7 @@ def _table(cls, raw, path: tuple, problems: _Problems, allowed=None):
     for f in fields(cls):
         if f.name not in raw:
             continue
-        value = _coerce(f.metadata["kind"], raw[f.name], path + (f.name,), problems)
+        value = _coerce(f.metadata["kind"], raw[f.name], path + (f.name,), problems, f.metadata["unit"])
         if value is None:
             ok = False
             continue
@@ -336,13 +388,20 @@ def _check_blob(b: BlobDef, path, problems: _Problems):
         problems.add(path + ("spacing",), "required with grid", show_got=False, line_path=path + ("grid",))
     elif b.spacing is not None and any(n > 1 and d == 0 for n, d in zip(b.grid, b.spacing)):
         problems.add(path + ("spacing",), "must be > 0 along an axis with more than one copy", b.spacing)
+    elif b.spacing is not None:
+        reach = max(abs(c) for c in (b.center or ())) + (b.radius or 0.0) if b.points is None else \
+            max(abs(c) for p in b.points for c in p)
+        reach += max((n - 1) * d for n, d in zip(b.grid, b.spacing))
+        if reach > MAX_COORDINATE:
+            problems.add(path + ("spacing",), f"the grid reaches {reach:.3g} m from the origin; "
+                         f"positions beyond ±{MAX_COORDINATE:g} m stop a run", b.spacing)
 
 
 def _check_static(s: StaticDef, path, problems: _Problems):
     if s.static_friction < s.friction:
         problems.add(path + ("static_friction",), f"must be >= friction ({s.friction})", s.static_friction)
-    if s.kind == "segment" and s.a == s.b:
-        problems.add(path + ("b",), "segment has zero length (a == b)", s.b)
+    if s.kind == "segment" and math.dist(s.a, s.b) < MIN_LENGTH:
+        problems.add(path + ("b",), f"segment must be at least {MIN_LENGTH:g} m long", s.b)
     if s.kind == "polygon":
         _check_polygon(s.points, path + ("points",), problems)
 
@@ -378,7 +437,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
 
     blobs = _array(raw, "blob", problems)
     statics = _array(raw, "static", problems)
-    if not blobs and "blob" not in raw:
+    if not blobs and isinstance(raw.get("blob", []), list):
         problems.add(("blob",), "a scene needs at least one [[blob]]", show_got=False)
 
     blob_defs = []
@@ -398,7 +457,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         if not isinstance(rs, dict):
             problems.add(path, "must be a table", rs)
             continue
-        if kind not in COLLIDERS:
+        if not isinstance(kind, str) or kind not in COLLIDERS:
             hint = difflib.get_close_matches(str(kind), list(COLLIDERS), n=1) if isinstance(kind, str) else []
             problems.add(path + ("kind",), f"must be one of {', '.join(COLLIDERS)}"
                          + (f"; did you mean {hint[0]!r}?" if hint else ""), kind)
@@ -443,6 +502,21 @@ def _check_size(scene: Scene, problems: _Problems):
     if scene.vertex_count > MAX_VERTICES:
         problems.add(("blob",), f"scene has {scene.vertex_count:,} vertices after grids; "
                      f"the limit is {MAX_VERTICES:,}", show_got=False)
+    for path, message in run_length_problems(scene):
+        problems.add(path, message, show_got=False)
+
+
+def run_length_problems(scene: Scene) -> list[tuple[tuple, str]]:
+    """(key path, message) for a run too long to finish or a step too long to interrupt."""
+    s, out = scene.settings, []
+    steps = s.steps if s.steps is not None else (s.duration or DEFAULT_DURATION) / s.dt
+    if steps > MAX_STEPS:
+        out.append((("scene", "duration"), f"duration / dt is {steps:.3g} steps; at most {MAX_STEPS:,}"))
+    work = s.substeps * s.iterations * scene.vertex_count
+    if work > MAX_STEP_WORK:
+        out.append((("scene", "iterations"), f"substeps × iterations × vertices is {work:,} per step; at most "
+                    f"{MAX_STEP_WORK:,}, so that a step stays interruptible"))
+    return out
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -450,10 +524,10 @@ def load_scene(path: str | Path) -> Scene:
     source = str(path)
     p = Path(path)
     try:
-        size = p.stat().st_size
-        if size > MAX_SCENE_BYTES:
-            raise SceneError([f"{source}: file is {size:,} bytes; a scene may be at most {MAX_SCENE_BYTES:,}"])
-        data = p.read_bytes()
+        with open(p, "rb") as f:
+            data = f.read(MAX_SCENE_BYTES + 1)  # a cap, not st_size: /dev/zero and pipes have none
+        if len(data) > MAX_SCENE_BYTES:
+            raise SceneError([f"{source}: file is larger than {MAX_SCENE_BYTES:,} bytes, the most a scene may be"])
     except FileNotFoundError:
         raise SceneError([f"{source}: no such file"]) from None
     except IsADirectoryError:
@@ -462,6 +536,8 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError([f"{source}: cannot read ({e.strerror})"]) from None
     if b"\x00" in data:
         raise SceneError([f"{source}:1: not a text file (it contains NUL bytes)"])
+    if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte-order mark, as some editors write
+        data = data[3:]
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:

@@ -52,8 +52,11 @@ import numba
 import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
+from .model import SimulationError
 from .ring import next_in_ring, ring_contains
 
+PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
+#                     the pair lists would exhaust memory, so the run stops instead
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
 BLOBS_PER_STRIP = 32  # the resolution cuts a scene into B // 32 vertical strips (at least 1) ...
@@ -85,7 +88,8 @@ def _blob_bounds(pos, offsets, center, radius, edges):
 
 
 @stage_kernel
-def _find_pairs(center, radius):
+def _find_pairs(center, radius, max_pairs):
+    """(pairs (P, 2), P): the candidate pairs; none are filled when P > max_pairs."""
     B = center.shape[0]
     r_max = radius.max()
     cell = 2.0 * r_max * (1.0 + BROAD_MARGIN)
@@ -108,10 +112,12 @@ def _find_pairs(center, radius):
         first[a + 1] = _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, nowhere, False)
     for a in range(B):
         first[a + 1] += first[a]
+    if first[B] > max_pairs:
+        return nowhere, first[B]
     pairs = np.empty((first[B], 2), np.int64)
     for a in numba.prange(B):
         _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, True)
-    return pairs
+    return pairs, first[B]
 
 
 @inline_kernel
@@ -138,7 +144,11 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 def find_blob_pairs(state, model, params, h):
     """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
     _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
-    state.pairs = _find_pairs[model.parallel](state.center, state.radius)
+    max_pairs = PAIRS_PER_BLOB * model.blob_count
+    state.pairs, count = _find_pairs[model.parallel](state.center, state.radius, max_pairs)
+    if count > max_pairs:
+        raise SimulationError(f"{count:,} blob pairs overlap (at most {max_pairs:,}, {PAIRS_PER_BLOB} per blob): "
+                              "are blobs spawned on top of each other?")
     state.partners = _partners(state.pairs, model.blob_count)
     state.strips = _strips(state.center)
     state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from ..jit import kernel
+from ..jit import inline_kernel, kernel
 from .model import Model, State
-from .ring import twice_ring_area
+from .ring import next_in_ring, twice_ring_area
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 
@@ -41,3 +41,53 @@ def _first_runaway(pos, limit):
 def first_runaway(state: State) -> int:
     """Index of the first vertex that is non-finite or beyond RUNAWAY, or -1."""
     return _first_runaway(state.pos, RUNAWAY)
+
+
+SELF_CROSSING_MAX_VERTICES = 4096  # larger rings are not checked for self-crossing (O(n²) per ring)
+
+
+@inline_kernel
+def _orient(ax, ay, bx, by, cx, cy):
+    d = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    return (d > 0.0) - (d < 0.0)
+
+
+@kernel
+def _shape_faults(pos, offsets, orient, faults):
+    """faults[b] = 1 if blob b's signed area has lost its rest sign (inside out), 2 if its ring
+    crosses itself (two non-adjacent edges properly cross), else 0."""
+    for b in range(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        faults[b] = 0
+        if twice_ring_area(pos, o, e) * orient[b] <= 0.0:
+            faults[b] = 1
+            continue
+        if e - o > SELF_CROSSING_MAX_VERTICES:
+            continue
+        for i in range(o, e):
+            i1 = next_in_ring(i, o, e)
+            for j in range(i + 2, e):
+                j1 = next_in_ring(j, o, e)
+                if j1 == i:
+                    continue
+                if (_orient(pos[i, 0], pos[i, 1], pos[i1, 0], pos[i1, 1], pos[j, 0], pos[j, 1])
+                        * _orient(pos[i, 0], pos[i, 1], pos[i1, 0], pos[i1, 1], pos[j1, 0], pos[j1, 1]) < 0
+                        and _orient(pos[j, 0], pos[j, 1], pos[j1, 0], pos[j1, 1], pos[i, 0], pos[i, 1])
+                        * _orient(pos[j, 0], pos[j, 1], pos[j1, 0], pos[j1, 1], pos[i1, 0], pos[i1, 1]) < 0):
+                    faults[b] = 2
+                    break
+            if faults[b]:
+                break
+
+
+def shape_warning(state: State, model: Model) -> str:
+    """One sentence on blobs that are inside out or self-intersecting now, or ""."""
+    faults = np.zeros(model.blob_count, dtype=np.int64)
+    _shape_faults(state.pos, model.offsets, model.orient, faults)
+    parts = []
+    for code, what in ((1, "inside out"), (2, "self-intersecting")):
+        blobs = np.flatnonzero(faults == code)
+        if len(blobs):
+            names = ", ".join(model.names[b] for b in blobs[:3]) + (", ..." if len(blobs) > 3 else "")
+            parts.append(f"{len(blobs)} blob{'s' * (len(blobs) > 1)} {what} ({names})")
+    return "; ".join(parts) + " at the end" if parts else ""

@@ -18,6 +18,10 @@ from ..scene.schema import BlobDef, Scene, StaticDef
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
 
+class SimulationError(Exception):
+    """A step that cannot go on (e.g. far more overlapping blob pairs than memory can hold)."""
+
+
 @dataclass(frozen=True)
 class Params:
     """Resolved time stepping and world settings."""

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-import h5py
 import numpy as np
+
+from ..io.h5md import PARAMETERS, POSITION, TrajectoryError, open_trajectory, text
 
 DIVERGENCE_LEVELS = (1e-12, 1e-9, 1e-6, 1e-3)  # m
 FRAMES_PER_READ = 256  # frames read at a time, so files larger than memory compare too
@@ -67,20 +68,14 @@ class Report:
 
 def _open(path, allow_incomplete):
     try:
-        f = h5py.File(path, "r")
-    except FileNotFoundError:
-        raise CannotCompare(f"{path}: no such file") from None
-    except OSError as e:
-        raise CannotCompare(f"{path}: not a readable HDF5 file ({e})") from None
-    try:
-        pos = f["particles/blobs/position"]
-        meta = {"value": pos["value"], "step": pos["step"][...], "time": pos["time"][...],
-                "offsets": f["parameters/blob_offsets"][...],
-                "names": [n.decode() for n in f["parameters/blob_names"][...]],
-                "complete": bool(f.attrs.get("complete", False))}
-    except KeyError as e:
-        f.close()
-        raise CannotCompare(f"{path}: not a blobsim trajectory (missing {e})") from None
+        f = open_trajectory(path)
+    except TrajectoryError as e:
+        raise CannotCompare(str(e)) from None
+    pos = f[POSITION]
+    meta = {"value": pos["value"], "step": pos["step"][...], "time": pos["time"][...],
+            "offsets": f[PARAMETERS]["blob_offsets"][...],
+            "names": [text(n) for n in f[PARAMETERS]["blob_names"][...]],
+            "complete": bool(f.attrs["complete"])}
     if not meta["complete"] and not allow_incomplete:
         f.close()
         raise CannotCompare(f"{path}: incomplete run (complete = false); pass --allow-incomplete to compare it")

@@ -10,9 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..colliders import COLLIDERS
-from ..io.h5md import read_trajectory
+from ..io.h5md import open_trajectory, read_trajectory, stored_scene
 from ..io.recording import blob_colors
-from ..scene.schema import parse_scene
 
 
 def draw_statics(ax, statics, lo, hi):
@@ -34,7 +33,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = read_trajectory(h5_path)
-    scene = parse_scene(t.scene, str(h5_path))
+    with open_trajectory(h5_path) as f:
+        scene = stored_scene(f, h5_path)
     picks = np.unique(np.linspace(0, len(t.step) - 1, frames).round().astype(int))
     finite = t.position[np.isfinite(t.position).all(axis=2)]
     lo, hi = finite.min(axis=0), finite.max(axis=0)

@@ -1,0 +1,149 @@
+"""Where results are written, and the rules that keep them whole.
+
+- `output_problem(path)` says, before any work, why a file cannot be written at `path`
+  (empty, NUL or control characters, a directory, a parent that is missing or not a
+  directory, a read-only place, a name too long for the file system).
+- `OutputLock` holds an exclusive lock on `<path>.lock` (flock: released by the kernel if the
+  process dies), so two runs never write one output; the second is refused naming the first.
+- `create_partial(path)` makes `<path>.partial` exclusively (O_EXCL | O_NOFOLLOW): never
+  through a symlink, never over another run's frames.
+- `publish(partial, path)` renames the finished file into place atomically.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+from pathlib import Path
+
+NAME_MAX = 255  # bytes in one path component on Linux file systems
+
+
+class OutputError(Exception):
+    """An output cannot be written; the message is one line for the user."""
+
+
+def text_problem(text: str) -> str | None:
+    """Why a path or name string is unusable (NUL or control characters), or None."""
+    bad = next((c for c in text if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        return f"contains a control character ({bad!r})"
+    return None
+
+
+def output_problem(path, suffixes=(".partial", ".lock")) -> str | None:
+    """Why a file cannot be created or replaced at `path`, or None. `suffixes`: sidecar names
+    that must fit too."""
+    text = os.fspath(path)
+    if text == "":
+        return "is empty"
+    problem = text_problem(text)
+    if problem:
+        return problem
+    p = Path(text)
+    if text.endswith(os.sep) or p.name in ("", ".", ".."):
+        return "names a directory, not a file"
+    if p.is_dir():
+        return "is a directory"
+    longest = max((len((p.name + s).encode()) for s in ("", *suffixes)))
+    if longest > NAME_MAX:
+        return f"file name is too long ({longest} bytes with its {'/'.join(suffixes)} sidecars; at most {NAME_MAX})"
+    parent = p.parent
+    for ancestor in (parent, *parent.parents):
+        if ancestor.exists():
+            if not ancestor.is_dir():
+                return f"{ancestor} is not a directory"
+            if not os.access(ancestor, os.W_OK | os.X_OK):
+                return f"cannot write in {ancestor} (read-only or no permission)"
+            break
+    return None
+
+
+def directory_problem(path) -> str | None:
+    """Why `path` cannot be used (or created) as an output directory, or None."""
+    text = os.fspath(path)
+    if text == "":
+        return "is empty"
+    problem = text_problem(text)
+    if problem:
+        return problem
+    p = Path(text)
+    for ancestor in (p, *p.parents):
+        if ancestor.exists():
+            if not ancestor.is_dir():
+                return f"{ancestor} is not a directory"
+            if not os.access(ancestor, os.W_OK | os.X_OK):
+                return f"cannot write in {ancestor} (read-only or no permission)"
+            return None
+    return None
+
+
+class OutputLock:
+    """An exclusive advisory lock on `<path>.lock` for the life of a run."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.lock_path = self.path.with_name(self.path.name + ".lock")
+        self.fd = None
+
+    def __enter__(self):
+        self.lock_path.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise OutputError(f"{self.path}: another blobsim run (pid {holder}) is writing this file; "
+                                  f"wait for it or choose another -o") from None
+            # The holder before us may have removed the lock file after we opened it: then
+            # our lock is on a file nobody else will see. Lock the file that is there now.
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.lock_path, follow_symlinks=False))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self.fd = fd
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            os.unlink(self.lock_path)  # while still holding it, so no one locks a removed file
+        except FileNotFoundError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+
+def create_partial(path) -> Path:
+    """Create `<path>.partial` exclusively and return its path. Refused if anything (a file, a
+    symlink) is already there: it may hold the frames of a run that was killed."""
+    path = Path(path)
+    partial = path.with_name(path.name + ".partial")
+    try:
+        fd = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except FileExistsError:
+        kind = "a symlink" if partial.is_symlink() else "a file"
+        raise OutputError(f"{partial}: already exists ({kind}), perhaps the frames of a run that was killed; "
+                          f"continue it with --resume {partial}, or move it away") from None
+    except OSError as e:
+        raise OutputError(f"{partial}: cannot create ({os.strerror(e.errno)})") from None
+    os.close(fd)
+    return partial
+
+
+def publish(partial: Path, path: Path) -> None:
+    """Move the finished file into place (atomic on one file system)."""
+    try:
+        os.replace(partial, path)
+    except OSError as e:
+        if e.errno == errno.EISDIR:
+            raise OutputError(f"{path}: is a directory; the run's frames are in {partial}") from None
+        raise OutputError(f"{path}: cannot replace ({os.strerror(e.errno)}); "
+                          f"the run's frames are in {partial}") from None

@@ -1,0 +1,54 @@
+"""What `check` and `run` warn about, without refusing: blobs spawned inside a static
+collider or overlapping another blob. Such blobs are pushed out at once, often at hundreds
+of m/s, which is rarely what the scene meant."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..colliders import COLLIDERS
+from ..geometry import depth_inside_polygon
+from .schema import Scene
+
+MAX_PAIR_CHECK_BLOBS = 2000  # blob-blob overlap is checked pairwise up to this many blobs
+MAX_VERTEX_CHECK = 200_000  # vertices tested against colliders (beyond: blob centres only)
+SHOWN = 5  # warnings listed before "... and N more"
+
+
+def _rings(scene: Scene):
+    """(name, index in scene.blobs, polygon (n, 2)) of every blob after grids."""
+    from ..sim.model import blob_points  # numpy only
+    for i, b in enumerate(scene.blobs):
+        base = blob_points(b)
+        name = b.name or f"blob{i}"
+        for ix in range(b.grid[0]):
+            for iy in range(b.grid[1]):
+                shift = np.array([ix * b.spacing[0], iy * b.spacing[1]]) if b.grid != (1, 1) else np.zeros(2)
+                yield (name if b.grid == (1, 1) else f"{name}_{ix}_{iy}"), i, base + shift
+
+
+def spawn_warnings(scene: Scene) -> list[str]:
+    rings = list(_rings(scene))
+    out = []
+    whole = scene.vertex_count <= MAX_VERTEX_CHECK
+    for name, i, ring in rings:
+        points = ring if whole else ring.mean(axis=0, keepdims=True)
+        for k, s in enumerate(scene.statics):
+            inside = int(np.count_nonzero(COLLIDERS[s.kind].depth(points, s) > 0.0))
+            if inside:
+                what = f"{inside} of its {len(ring)} vertices" if whole else "its centre"
+                out.append(f"{scene.source}: blob[{i}] ({name}): {what} start inside static[{k}] ({s.kind}); "
+                           f"it will be pushed out at once")
+    if 1 < len(rings) <= MAX_PAIR_CHECK_BLOBS:
+        centers = np.array([r.mean(axis=0) for _, _, r in rings])
+        radii = np.array([np.hypot(*(r - c).T).max() for (_, _, r), c in zip(rings, centers)])
+        d = np.hypot(*(centers[:, None, :] - centers[None, :, :]).transpose(2, 0, 1))
+        close = np.argwhere(np.triu(d < radii[:, None] + radii[None, :], 1))
+        for a, b in close:
+            (na, ia, ra), (nb, ib, rb) = rings[a], rings[b]
+            if (depth_inside_polygon(ra, rb) > 0).any() or (depth_inside_polygon(rb, ra) > 0).any():
+                out.append(f"{scene.source}: blob[{ia}] ({na}) and blob[{ib}] ({nb}) overlap at the start; "
+                           f"they will be pushed apart at once")
+    if len(out) > SHOWN:
+        out = out[:SHOWN] + [f"... and {len(out) - SHOWN} more"]
+    return out
