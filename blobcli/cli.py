@@ -152,6 +152,9 @@ def cmd_run(args) -> int:
         scene = with_overrides(load_scene(args.scene), steps=args.steps, duration=args.duration, method=args.method)
     except SceneError as e:
         return _fail(e.problems)
+    problems = _output_problems((args.output, "file"))
+    if problems:
+        return _fail(problems)
     output = args.output
     if args.resume:
         from .io.h5md import resume_problems

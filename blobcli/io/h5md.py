@@ -15,6 +15,7 @@ import os
 import platform
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,6 +62,8 @@ PARAMETERS = "parameters"
 RESTART = "restart"
 BLOCK_BYTES = 4 << 20  # frames per block: about this many bytes of positions
 FLUSH_SECONDS = 10.0  # and no block waits longer than this
+DISK_RESERVE = 1 << 20  # bytes: a block is written only if this much stays free after it (HDF5 metadata,
+#                         the closing attributes); HDF5 cannot recover from a write the disk refuses
 
 
 def _series(group, name, shape, dtype=np.float64, unit=None, chunk=1):
@@ -92,6 +95,10 @@ def versions() -> dict:
 
 class TrajectoryError(Exception):
     """A file that is not a readable blobsim trajectory; the message is one line."""
+
+
+class DiskFull(OSError):
+    """The next block of frames would not fit on the disk; nothing of it was written."""
 
 
 class TrajectoryWriter:
@@ -147,6 +154,7 @@ class TrajectoryWriter:
         self._last_impact = np.empty(b)
         self._count = 0
         self._last_flush = time.monotonic()
+        self._frame_bytes = 8 * (2 * n + 2 * b) + 16
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
@@ -166,6 +174,11 @@ class TrajectoryWriter:
         k = self._count
         if k == 0:
             return
+        disk = os.statvfs(self.partial.parent)
+        free, need = disk.f_bavail * disk.f_frsize, k * self._frame_bytes + DISK_RESERVE
+        if free < need:
+            raise DiskFull(28, f"no space left on the disk for {k} more frames ({free:,} bytes free, "
+                               f"{need:,} needed)")
         steps = self._steps[:k]
         start, stop = self.frames, self.frames + k
         for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
@@ -193,7 +206,7 @@ class TrajectoryWriter:
         """Resume: copy the frames and restart state of `source` (checked by the caller with
         `resume_problems`) and load that state. Returns the step to continue after, or None
         when `stop_requested()` turned true while copying (then this file is to be abandoned)."""
-        with open_trajectory(source) as f:
+        with open_trajectory(source) as f, reading(source):
             restart = f[RESTART]
             step = int(restart.attrs["step"])
             pos = f[POSITION]
@@ -219,8 +232,11 @@ class TrajectoryWriter:
         self.file.flush()
         return step
 
-    def close(self, complete: bool, stopped: str = "", warnings: str = ""):
-        """Write what is buffered, mark the file and move it into place at `path`."""
+    def close(self, complete: bool, stopped: str = "", warnings: str = "", drop_buffered: bool = False):
+        """Write what is buffered (unless drop_buffered: the disk is full), mark the file and
+        move it into place at `path`."""
+        if drop_buffered:
+            self._count = 0
         self.flush()
         self.file.attrs["complete"] = complete
         self.file.attrs["stopped"] = stopped
@@ -311,6 +327,18 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
     return [x for x in problems if x]
 
 
+@contextmanager
+def reading(path):
+    """Turn a failure while reading a trajectory's data (a damaged block passes the layout
+    check and fails only when read) into TrajectoryError."""
+    try:
+        yield
+    except TrajectoryError:
+        raise
+    except (OSError, RuntimeError, ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+        raise TrajectoryError(f"{path}: damaged, cannot be read ({str(e).splitlines()[0]})") from None
+
+
 def open_trajectory(path, need_restart: bool = False) -> h5py.File:
     """Open a trajectory for reading, checked against LAYOUT; raise TrajectoryError (one line)."""
     try:
@@ -342,7 +370,14 @@ def resume_problems(path, scene, params) -> list[str]:
         f = open_trajectory(path, need_restart=True)
     except TrajectoryError as e:
         return [str(e)]
-    with f:
+    try:
+        return _resume_problems(f, path, scene, params)
+    except TrajectoryError as e:
+        return [str(e)]
+
+
+def _resume_problems(f, path, scene, params) -> list[str]:
+    with f, reading(path):
         p = f[PARAMETERS]
         problems = []
         if text(p["scene"][()]) != scene.text:
@@ -389,7 +424,7 @@ class Trajectory:
 
 def read_trajectory(path: str | Path) -> Trajectory:
     """Read a whole trajectory file; raise TrajectoryError if it is not one."""
-    with open_trajectory(path) as f:
+    with open_trajectory(path) as f, reading(path):
         pos = f[POSITION]
         p = f[PARAMETERS]
         return Trajectory(position=pos["value"][...], step=pos["step"][...], time=pos["time"][...],

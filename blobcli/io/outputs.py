@@ -131,7 +131,7 @@ def create_partial(path) -> Path:
     except FileExistsError:
         kind = "a symlink" if partial.is_symlink() else "a file"
         raise OutputError(f"{partial}: already exists ({kind}), perhaps the frames of a run that was killed; "
-                          f"continue it with --resume {partial}, or move it away") from None
+                          f"move it away (a killed run's file can be continued with --resume) or delete it") from None
     except OSError as e:
         raise OutputError(f"{partial}: cannot create ({os.strerror(e.errno)})") from None
     os.close(fd)

@@ -112,8 +112,8 @@ class RerunRecorder:
 
 def replay(h5_path, rrd_path) -> int:
     """Write the recording of an existing trajectory file, without simulating. Returns frames."""
-    from .h5md import AREA, KINETIC, PARAMETERS, POSITION, open_trajectory, stored_scene, text
-    with open_trajectory(h5_path) as f:
+    from .h5md import AREA, KINETIC, PARAMETERS, POSITION, open_trajectory, reading, stored_scene, text
+    with open_trajectory(h5_path) as f, reading(h5_path):
         p = f[PARAMETERS]
         scene = stored_scene(f, h5_path)
         pos = f[POSITION]

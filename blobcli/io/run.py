@@ -27,7 +27,7 @@ from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
 from ..sim.model import SimulationError, build, build_params
 from ..sim.pipeline import step
 from . import interrupts
-from .h5md import TrajectoryWriter
+from .h5md import DiskFull, TrajectoryError, TrajectoryWriter
 from .outputs import OutputError, OutputLock, output_problem
 
 PROGRESS_SECONDS = 0.25  # the progress bar is redrawn at most this often
@@ -99,12 +99,12 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
     start = time.perf_counter()
     try:
         if resume is not None:
-            done = writer.adopt(resume, state, interrupts.pending)
-            if done is None:  # stopped while copying: the original stays as it was
+            adopted = writer.adopt(resume, state, interrupts.pending)
+            if adopted is None:  # stopped while copying: the original stays as it was
                 writer.abandon()
                 return result("interrupted", f"interrupted while copying the frames of {resume}; it is unchanged",
                               written=False)
-            worst = writer.worst_area_error
+            done, worst = adopted, writer.worst_area_error
         else:
             record(0)
         first = done
@@ -139,8 +139,13 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
         status, message, warning = "failed", f"step {done + 1}: {e}", ""
     except MemoryError:
         status, message, warning = "failed", f"step {done + 1}: out of memory", ""
-    except OSError as e:  # the file system refused a write (disk full, quota, I/O error)
-        return _write_failed(writer, e, result)
+    except DiskFull as e:  # checked before each block: the file is whole up to the last block
+        return _disk_full(writer, e, result)
+    except (OSError, RuntimeError) as e:  # the file system refused a write (quota, I/O error, a full disk
+        return _write_failed(writer, e, result)  # that another process filled): HDF5 reports either
+    except TrajectoryError:  # the file to resume from is damaged: leave everything as it was
+        writer.abandon()
+        raise
     except BaseException as e:  # a bug: keep the frames, marked incomplete, then let it surface
         writer.close(complete=False, stopped=f"step {done + 1}: {type(e).__name__}: {e}")
         raise
@@ -149,11 +154,23 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
             bar.close()
     try:
         writer.close(complete=status == "complete", stopped=message, warnings=warning)
-    except OSError as e:
+    except DiskFull as e:
+        return _disk_full(writer, e, result)
+    except (OSError, RuntimeError) as e:
         return _write_failed(writer, e, result)
     return result(status, message, warning)
 
 
-def _write_failed(writer, error: OSError, result) -> RunResult:
+def _disk_full(writer, error: DiskFull, result) -> RunResult:
+    if writer.frames == 0:
+        writer.abandon()
+        return result("failed", f"{error.strerror}; nothing was written", written=False)
+    writer.close(complete=False, stopped=str(error), drop_buffered=True)
+    return result("failed", f"{error.strerror}; kept the {writer.frames} frames written before it "
+                            f"(complete = false, resumable)")
+
+
+def _write_failed(writer, error: Exception, result) -> RunResult:
     kept = writer.salvage(f"write failed: {error}")
-    return result("failed", f"cannot write {writer.partial} ({error.strerror or error}); {kept}", written=False)
+    reason = getattr(error, "strerror", None) or str(error).split("\n")[0]
+    return result("failed", f"cannot write {writer.partial} ({reason}); {kept}", written=False)

@@ -13,6 +13,7 @@ from .schema import Scene
 MAX_PAIR_CHECK_BLOBS = 2000  # blob-blob overlap is checked pairwise up to this many blobs
 MAX_VERTEX_CHECK = 200_000  # vertices tested against colliders (beyond: blob centres only)
 SHOWN = 5  # warnings listed before "... and N more"
+TOUCHING = 1e-9  # m: deeper than this is inside; blobs spawned exactly touching are not warned about
 
 
 def _rings(scene: Scene):
@@ -34,7 +35,7 @@ def spawn_warnings(scene: Scene) -> list[str]:
     for name, i, ring in rings:
         points = ring if whole else ring.mean(axis=0, keepdims=True)
         for k, s in enumerate(scene.statics):
-            inside = int(np.count_nonzero(COLLIDERS[s.kind].depth(points, s) > 0.0))
+            inside = int(np.count_nonzero(COLLIDERS[s.kind].depth(points, s) > TOUCHING))
             if inside:
                 what = f"{inside} of its {len(ring)} vertices" if whole else "its centre"
                 out.append(f"{scene.source}: blob[{i}] ({name}): {what} start inside static[{k}] ({s.kind}); "
@@ -46,7 +47,7 @@ def spawn_warnings(scene: Scene) -> list[str]:
         close = np.argwhere(np.triu(d < radii[:, None] + radii[None, :], 1))
         for a, b in close:
             (na, ia, ra), (nb, ib, rb) = rings[a], rings[b]
-            if (depth_inside_polygon(ra, rb) > 0).any() or (depth_inside_polygon(rb, ra) > 0).any():
+            if (depth_inside_polygon(ra, rb) > TOUCHING).any() or (depth_inside_polygon(rb, ra) > TOUCHING).any():
                 out.append(f"{scene.source}: blob[{ia}] ({na}) and blob[{ib}] ({nb}) overlap at the start; "
                            f"they will be pushed apart at once")
     if len(out) > SHOWN:

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..io.h5md import PARAMETERS, POSITION, TrajectoryError, open_trajectory, text
+from ..io.h5md import PARAMETERS, POSITION, TrajectoryError, open_trajectory, reading, text
 
 DIVERGENCE_LEVELS = (1e-12, 1e-9, 1e-6, 1e-3)  # m
 FRAMES_PER_READ = 256  # frames read at a time, so files larger than memory compare too
@@ -71,11 +71,16 @@ def _open(path, allow_incomplete):
         f = open_trajectory(path)
     except TrajectoryError as e:
         raise CannotCompare(str(e)) from None
-    pos = f[POSITION]
-    meta = {"value": pos["value"], "step": pos["step"][...], "time": pos["time"][...],
-            "offsets": f[PARAMETERS]["blob_offsets"][...],
-            "names": [text(n) for n in f[PARAMETERS]["blob_names"][...]],
-            "complete": bool(f.attrs["complete"])}
+    try:
+        with reading(path):
+            pos = f[POSITION]
+            meta = {"value": pos["value"], "step": pos["step"][...], "time": pos["time"][...],
+                    "offsets": f[PARAMETERS]["blob_offsets"][...],
+                    "names": [text(n) for n in f[PARAMETERS]["blob_names"][...]],
+                    "complete": bool(f.attrs["complete"])}
+    except TrajectoryError as e:
+        f.close()
+        raise CannotCompare(str(e)) from None
     if not meta["complete"] and not allow_incomplete:
         f.close()
         raise CannotCompare(f"{path}: incomplete run (complete = false); pass --allow-incomplete to compare it")
@@ -88,7 +93,10 @@ def compare_files(path_a, path_b, atol=0.0, rtol=0.0, frames=None, until=None, a
     try:
         fb, b = _open(path_b, allow_incomplete)
         try:
-            return _compare(str(path_a), str(path_b), a, b, atol, rtol, frames, until)
+            with reading(f"{path_a} or {path_b}"):
+                return _compare(str(path_a), str(path_b), a, b, atol, rtol, frames, until)
+        except TrajectoryError as e:
+            raise CannotCompare(str(e)) from None
         finally:
             fb.close()
     finally:
@@ -113,7 +121,8 @@ def _compare(name_a, name_b, a, b, atol, rtol, frames, until) -> Report:
     wanted = frames if frames is not None else None
     if until is None and frames is None and len(a["step"]) != len(b["step"]):
         notes.append(f"different length: {len(a['step'])} frames in {name_a}, {len(b['step'])} in {name_b}")
-    elif wanted is not None and limit < wanted:
+    elif wanted is not None and limit < wanted and len(a["step"]) != len(b["step"]):
+        # asked for frames one file has and the other lacks (both ending early alike is no difference)
         notes.append(f"only {limit} frames in common, {wanted} asked for")
 
     offsets, names = a["offsets"], a["names"]

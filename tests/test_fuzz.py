@@ -1,0 +1,173 @@
+"""Two fuzzers: scenes (valid-extreme and invalid) and trajectory files (truncated, byte-flipped,
+crafted). Short in CI; run long by hand with, e.g.
+
+    BLOBSIM_FUZZ_EXAMPLES=2000 pytest tests/test_fuzz.py
+
+The contract they check: exit 0, 1 or 2 only; never a traceback or an internal error; nothing
+written for a refused scene."""
+
+import math
+import os
+import string
+
+import h5py
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_outputs import cli
+
+from blobcli.scene.schema import TABLES
+
+EXAMPLES = int(os.environ.get("BLOBSIM_FUZZ_EXAMPLES", "40"))
+FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                           HealthCheck.too_slow])
+RUN_VERTICES, RUN_WORK = 2_000, 64  # valid scenes this small are also run (a few steps)
+
+
+def toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
+    if isinstance(v, str):
+        return '"' + "".join(c if c.isalnum() or c in " ._-/" else f"\\u{ord(c):04x}" for c in v) + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
+    raise TypeError(v)
+
+
+numbers = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, 5e-324, 1e-320, 1e-9, 1e-6, 0.5, 1.0, 1e6, 1e300, 1e307, -1.0]),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.sampled_from([0, 1, 2, 3, 2**31, 2**63 - 1, 2**63, 10**12, -1]),
+)
+texts = st.text(alphabet=string.ascii_letters + "\x00\n\t\x7f/é. ", max_size=40) | st.just("x" * 300)
+values = st.one_of(numbers, texts, st.booleans(), st.lists(numbers, max_size=4),
+                   st.lists(st.lists(numbers, min_size=2, max_size=2), max_size=8), st.just({"a": 1}))
+
+
+def table(cls, extra=()):
+    keys = [f.name for f in cls.__dataclass_fields__.values()] + list(extra)
+    return st.dictionaries(st.sampled_from(keys), values, max_size=6)
+
+
+# Mostly sane values for the keys a runnable scene needs, and anything at all for the rest.
+blob = st.fixed_dictionaries({"center": st.lists(st.floats(-5, 5), min_size=2, max_size=2),
+                              "radius": st.floats(1e-7, 2.0), "vertices": st.integers(2, 40)}) | table(TABLES["blob"])
+static = st.fixed_dictionaries({"kind": st.sampled_from(["plane", "segment", "box", "circle", "polygon", "cone"]),
+                                "point": st.just([0.0, 0.0]), "normal": st.just([0.0, 1.0])}) | table(TABLES["static"])
+scenes = st.fixed_dictionaries({}, optional={
+    "scene": table(TABLES["scene"], ["durtion"]) | st.fixed_dictionaries({"steps": st.integers(-2, 30),
+                                                                          "substeps": st.integers(0, 8)}),
+    "output": table(TABLES["output"]),
+    "blob": st.lists(blob, max_size=3) | values,
+    "static": st.lists(static, max_size=2),
+    "bogus": values,
+})
+
+
+def scene_text(doc: dict) -> str:
+    lines = []
+    for name in ("scene", "output"):
+        if name in doc:
+            lines.append(f"[{name}]")
+            lines += [f"{k} = {toml_value(v)}" for k, v in doc[name].items()]
+    for name in ("blob", "static"):
+        items = doc.get(name, [])
+        if not isinstance(items, list) or not all(isinstance(x, dict) for x in items):
+            lines.insert(0, f"{name} = {toml_value(items)}")
+            continue
+        for item in items:
+            lines.append(f"[[{name}]]")
+            lines += [f"{k} = {toml_value(v)}" for k, v in item.items()]
+    if "bogus" in doc:
+        lines.insert(0, f"bogus = {toml_value(doc['bogus'])}")
+    return "\n".join(lines) + "\n"
+
+
+@FUZZ
+@given(doc=scenes)
+def test_scene_fuzzer_exit_0_1_2_never_a_traceback(tmp_path_factory, doc):
+    d = tmp_path_factory.mktemp("fuzz")
+    path = d / "s.toml"
+    path.write_text(scene_text(doc))
+    code, out, err = cli("check", path)
+    assert code in (0, 2) and "Traceback" not in err and "internal error" not in err, err
+    if code == 2:
+        assert cli("run", path, "-o", d / "o.h5", "-q")[0] == 2
+        assert not list(d.glob("o.h5*"))  # nothing written when refused
+        return
+    from blobcli import load_scene
+    scene = load_scene(path)
+    s = scene.settings
+    if scene.vertex_count <= RUN_VERTICES and s.substeps * s.iterations <= RUN_WORK:
+        code, out, err = cli("run", path, "-o", d / "o.h5", "--steps", "3", "-q")
+        assert code in (0, 1) and "internal error" not in err, err
+        assert (d / "o.h5").exists() and not (d / "o.h5.partial").exists()
+
+
+@st.composite
+def damaged_files(draw):
+    kind = draw(st.sampled_from(["truncate", "flip", "delete", "reshape", "attr"]))
+    return kind, draw(st.integers(0, 2**31)), draw(st.integers(1, 64))
+
+
+GOOD = {}
+
+
+def good_trajectory(d):
+    if "path" not in GOOD or not GOOD["path"].exists():
+        from test_outputs import ONE
+        scene = d / "s.toml"
+        scene.write_text(ONE)
+        assert cli("run", scene, "-o", d / "good.h5", "-q")[0] == 0
+        GOOD.update(path=d / "good.h5", scene=scene)
+    return GOOD["path"], GOOD["scene"]
+
+
+NAMES = ["particles/blobs/position/value", "particles/blobs/position/step", "particles/blobs/position/time",
+         "observables/area/value", "observables/kinetic_energy/value", "parameters/blob_offsets",
+         "parameters/blob_names", "parameters/target_area", "parameters/mass", "parameters/scene",
+         "restart/position", "restart/velocity", "restart/impact_speed"]
+
+
+@FUZZ
+@given(damage=damaged_files())
+def test_file_fuzzer_every_reader_exits_0_1_2_never_a_traceback(tmp_path_factory, damage):
+    good, scene = good_trajectory(tmp_path_factory.getbasetemp())
+    d = tmp_path_factory.mktemp("files")
+    bad = d / "bad.h5"
+    data = bytearray(good.read_bytes())
+    kind, seed, count = damage
+    rng = np.random.default_rng(seed)
+    if kind == "truncate":
+        bad.write_bytes(bytes(data[: int(rng.integers(0, len(data)))]))
+    elif kind == "flip":
+        for i in rng.integers(0, len(data), count):
+            data[i] ^= int(rng.integers(1, 256))
+        bad.write_bytes(bytes(data))
+    else:
+        bad.write_bytes(bytes(data))
+        with h5py.File(bad, "r+") as f:
+            name = NAMES[seed % len(NAMES)]
+            if kind == "delete":
+                del f[name]
+            elif kind == "reshape":
+                del f[name]
+                f[name] = rng.normal(size=(count,) * int(rng.integers(0, 3)))
+            else:
+                key = ["complete", "blobsim_format"][seed % 2]
+                del f.attrs[key]
+                if seed % 3 == 0:
+                    f.attrs[key] = "nonsense"
+    for args in (("compare", bad, good, "--allow-incomplete"), ("compare", good, bad),
+                 ("replay", bad, "-o", d / "r.rrd"), ("render", bad, "-o", d / "r.png"),
+                 ("run", scene, "--resume", bad, "--steps", "60", "-o", d / "resumed.h5", "-q"),
+                 ("view", bad)):
+        code, out, err = cli(*args)
+        assert code in (0, 1, 2) and "Traceback" not in err and "internal error" not in err, (args, err)
