@@ -192,3 +192,8 @@ def test_resume_refuses_another_scene_or_a_finished_run(tmp_path):
 def test_compare_api_raises_for_missing_files(tmp_path):
     with pytest.raises(CannotCompare):
         compare_files(tmp_path / "x.h5", tmp_path / "y.h5")
+
+
+def test_docs_show_the_writers_one_schema():
+    from blobcli.io.h5md import LAYOUT
+    assert LAYOUT in (ROOT / "docs" / "output-format.md").read_text()

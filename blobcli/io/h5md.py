@@ -339,8 +339,41 @@ def reading(path):
         raise TrajectoryError(f"{path}: damaged, cannot be read ({str(e).splitlines()[0]})") from None
 
 
+PROBE_BYTES = 1 << 20  # the probe reads datasets up to this size whole, larger ones at both ends
+
+
+def _probe_crashes(path) -> bool:
+    """Whether reading the file's metadata crashes the process. The HDF5 library can segfault on
+    a byte-flipped file (seen reading an attribute), which no Python handler can catch; so a
+    forked child reads every attribute and the ends of every dataset first, and only a file it
+    survives is opened here."""
+    if not hasattr(os, "fork"):
+        return False
+    pid = os.fork()
+    if pid == 0:  # the child: read, then leave without running any cleanup of the parent's
+        code = 0
+        try:
+            with h5py.File(path, "r") as f:
+                def visit(name, obj):
+                    dict(obj.attrs)
+                    if isinstance(obj, h5py.Dataset) and obj.shape is not None:
+                        if obj.size * obj.dtype.itemsize <= PROBE_BYTES or not obj.shape:
+                            obj[()]
+                        else:
+                            obj[:1], obj[-1:]
+                dict(f.attrs)
+                f.visititems(visit)
+        except BaseException:  # noqa: BLE001 - an exception is the parent's to report, not a crash
+            code = 0
+        os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    return os.WIFSIGNALED(status)
+
+
 def open_trajectory(path, need_restart: bool = False) -> h5py.File:
     """Open a trajectory for reading, checked against LAYOUT; raise TrajectoryError (one line)."""
+    if Path(path).is_file() and _probe_crashes(path):
+        raise TrajectoryError(f"{path}: damaged: the HDF5 library crashes reading it")
     try:
         f = h5py.File(path, "r")
     except FileNotFoundError:
