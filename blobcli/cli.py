@@ -21,6 +21,10 @@ def _positive_int(text):
     return v
 
 
+def _nonnegative_int(text):
+    return 0 if text.strip() == "0" else _positive_int(text)
+
+
 def _number(allow_zero: bool):
     """An argparse type: a finite float, > 0 (or >= 0 with allow_zero)."""
     def parse(text):
@@ -53,6 +57,16 @@ class _CommaList(argparse.Action):
 
 _positive_float = _number(allow_zero=False)
 _nonnegative_float = _number(allow_zero=True)
+
+
+SWEEP_METRICS = ("worst_area_error", "final_kinetic_energy", "wall_time_s", "steps")  # tools/sweep.METRICS
+
+
+def _cluster_options(command):
+    command.add_argument("--scheduler", metavar="ADDRESS",
+                         help="a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+    command.add_argument("--workers", type=_nonnegative_int, metavar="N",
+                         help="local worker processes (default: one per core; 0: in this process)")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -106,6 +120,20 @@ def parser() -> argparse.ArgumentParser:
                        help="print each method's cheapest setting with trajectory error <= E")
     study.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (default: the scene's)")
     study.add_argument("-o", "--output", default="outputs/study", metavar="DIR", help="default outputs/study")
+
+    sweep = sub.add_parser("sweep", help="run a parameter sweep of a scene on a Dask cluster (local by default)",
+                           description="Exit 0: every point ok; 1: some point failed; 2: a bad sweep file; "
+                                       "130: interrupted (finished points and the summary are kept).")
+    sweep.add_argument("sweep", metavar="SWEEP.toml")
+    sweep.add_argument("-o", "--output", default="outputs/sweeps", metavar="DIR",
+                       help="points and summary go to DIR/<name>/ (default outputs/sweeps)")
+    _cluster_options(sweep)
+    sweep.add_argument("--metrics", action=_CommaList, allowed=SWEEP_METRICS, default=["worst_area_error"],
+                       metavar="M", help=f"what summary.png charts (default worst_area_error; of "
+                                         f"{','.join(SWEEP_METRICS)})")
+    sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    for command in (stress, study):
+        _cluster_options(command)
 
     bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
     bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
@@ -273,7 +301,7 @@ def cmd_stress(args) -> int:
     if problems:
         return _fail(problems)
     from .tools.stress import run_stress
-    result = run_stress(args.methods, args.output, args.quick)
+    result = run_stress(args.methods, args.output, args.quick, args.scheduler, args.workers)
     print(result["table"])
     print(f"\nblobsim: {sum(v.passed for v in result['verdicts'])} of {len(result['verdicts'])} runs passed; "
           f"table, CSV and stability map ({result['out_dir'] / 'stability_map.png'}) in {result['out_dir']}")
@@ -292,7 +320,7 @@ def cmd_study(args) -> int:
     if problems:
         return _fail(problems)
     from .tools.study import chart, cheapest, format_points, run_study, write_csv
-    points = run_study(scene, args.methods, args.output, args.duration)
+    points = run_study(scene, args.methods, args.output, args.duration, args.scheduler, args.workers)
     out = Path(args.output)
     write_csv(points, out / f"{scene.name}_study.csv")
     chart(points, out / f"{scene.name}_study.png",
@@ -304,6 +332,55 @@ def cmd_study(args) -> int:
             print(f"  {method:8s} " + (f"{p.label} ({p.wall_time:.3f} s)" if p else "none of the ladder"))
     print(f"\nblobsim: chart {out / (scene.name + '_study.png')}, numbers {out / (scene.name + '_study.csv')}")
     return 0
+
+
+def cmd_sweep(args) -> int:
+    from pathlib import Path
+
+    from .scene.schema import SceneError
+    from .tools import sweep as sw
+    try:
+        sweep = sw.load_sweep(args.sweep)
+    except SceneError as e:
+        return _fail(e.problems)
+    out = Path(args.output) / sweep.name
+    problems = _output_problems((out, "dir"))
+    if problems:
+        return _fail(problems)
+    out.mkdir(parents=True, exist_ok=True)
+    rows, tasks, index = {}, [], []
+    for k, text in enumerate(sweep.texts):
+        toml, h5 = out / f"point-{k:04d}.toml", out / f"point-{k:04d}.h5"
+        if not toml.exists() or toml.read_text() != text:
+            toml.write_text(text)
+        state = sw.point_state(h5, text)
+        if state == "done":
+            rows[k] = sw.reused_row(h5)
+        else:
+            tasks.append((str(toml), str(h5), state == "resume"))
+            index.append(k)
+    print(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}",
+          file=sys.stderr)
+    from .io.interrupts import Interrupted
+    from .tools.executor import run_tasks
+    interrupted = False
+    try:
+        for i, row in run_tasks(sw.run_point, tasks, args.scheduler, args.workers,
+                                progress=not args.quiet and sys.stderr.isatty(), label="points"):
+            rows[index[i]] = row
+    except (KeyboardInterrupt, Interrupted):
+        interrupted = True
+        for k in set(range(len(sweep.points))) - set(rows):  # finished on a worker, not yet reported
+            h5 = out / f"point-{k:04d}.h5"
+            if sw.point_state(h5, sweep.texts[k]) == "done":
+                rows[k] = sw.reused_row(h5)
+    summary = sw.write_summary(sweep, rows, out)
+    sw.chart(sweep, rows, out / "summary.png", args.metrics)
+    ok = sum(r["status"] == "ok" for r in rows.values())
+    failed = sum(r["status"].startswith("failed") for r in rows.values())
+    print(f"blobsim: {ok} of {len(sweep.points)} points ok, {failed} failed"
+          + (", interrupted" if interrupted else "") + f"; summary {summary}, chart {out / 'summary.png'}")
+    return 130 if interrupted else 1 if failed or ok < len(sweep.points) else 0
 
 
 def cmd_bench(args) -> int:
@@ -329,7 +406,7 @@ def cmd_compare(args) -> int:
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
             "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress,
-            "study": cmd_study}
+            "study": cmd_study, "sweep": cmd_sweep}
 
 
 def main(argv=None) -> int:

@@ -18,8 +18,9 @@ def test_quick_bench_runs_and_reports_every_figure(tmp_path):
         ("apart", 1), ("apart", 10), ("piled", 1), ("piled", 10)}
     assert all(row["vertices"] == 32 * row["blobs"] for row in report["rows"])
     assert all(row["ms_per_step"] > 0 and row["ns_per_vertex_substep"] > 0 for row in report["rows"])
-    for key in ("core", "startup", "recording", "memory"):
+    for key in ("core", "startup", "recording", "memory", "sweep"):
         assert key in report
     assert report["startup"]["cold_s"] > 0 and report["startup"]["warm_s"] > 0
-    for line in ("core substep", "blobsim run, 1 blob, 1000 steps", "recording every step", "peak memory"):
+    for line in ("core substep", "blobsim run, 1 blob, 1000 steps", "recording every step", "peak memory",
+                 "one-blob points of 300 steps: blobsim sweep"):
         assert line in r.stdout

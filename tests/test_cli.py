@@ -44,7 +44,7 @@ normal = [0.0, 1.0]
 def test_help_is_instant_and_imports_nothing_heavy():
     out = subprocess.run([sys.executable, "-c", "import sys, blobcli.cli as c\n"
                           "try:\n    c.main(['--help'])\nexcept SystemExit: pass\n"
-                          "print(sorted(m for m in ('numba', 'h5py', 'numpy', 'tqdm', 'rerun', 'matplotlib') if m in sys.modules))"],
+                          "print(sorted(m for m in ('numba', 'h5py', 'numpy', 'tqdm', 'rerun', 'matplotlib', 'dask', 'distributed') if m in sys.modules))"],
                          capture_output=True, text=True)
     assert out.stdout.strip().endswith("[]")
 

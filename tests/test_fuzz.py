@@ -19,8 +19,9 @@ from test_outputs import cli
 from blobcli.scene.schema import TABLES
 
 EXAMPLES = int(os.environ.get("BLOBSIM_FUZZ_EXAMPLES", "40"))
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                           HealthCheck.too_slow])
+# Derandomized unless run long by hand, so that CI's examples (and its time) are the same every run.
+FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize="BLOBSIM_FUZZ_EXAMPLES" not in os.environ,
+                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 RUN_VERTICES, RUN_WORK = 2_000, 64  # valid scenes this small are also run (a few steps)
 
 

@@ -340,15 +340,25 @@ def reading(path):
 
 
 PROBE_BYTES = 1 << 20  # the probe reads datasets up to this size whole, larger ones at both ends
+PROBE_SECONDS = 10.0  # and gives up on (and refuses) a file whose metadata it cannot read in this time
+_probed: dict = {}  # (device, inode, size, mtime) -> crashed: a file is probed once per process
 
 
 def _probe_crashes(path) -> bool:
-    """Whether reading the file's metadata crashes the process. The HDF5 library can segfault on
-    a byte-flipped file (seen reading an attribute), which no Python handler can catch; so a
-    forked child reads every attribute and the ends of every dataset first, and only a file it
-    survives is opened here."""
+    """Whether reading the file's metadata crashes or hangs the process. The HDF5 library can
+    segfault on a byte-flipped file (seen reading an attribute), or loop without end, which no
+    Python handler can catch; so a forked child reads every attribute and the ends of every
+    dataset first, and only a file it survives within PROBE_SECONDS is opened here."""
     if not hasattr(os, "fork"):
         return False
+    st = os.stat(path)
+    key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+    if key not in _probed:
+        _probed[key] = _probe_in_child(path)
+    return _probed[key]
+
+
+def _probe_in_child(path) -> bool:
     pid = os.fork()
     if pid == 0:  # the child: read, then leave without running any cleanup of the parent's
         code = 0
@@ -366,14 +376,22 @@ def _probe_crashes(path) -> bool:
         except BaseException:  # noqa: BLE001 - an exception is the parent's to report, not a crash
             code = 0
         os._exit(code)
-    _, status = os.waitpid(pid, 0)
-    return os.WIFSIGNALED(status)
+    deadline = time.monotonic() + PROBE_SECONDS
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return os.WIFSIGNALED(status)
+        if time.monotonic() > deadline:  # a damaged file can also send HDF5 into an endless loop
+            os.kill(pid, 9)
+            os.waitpid(pid, 0)
+            return True
+        time.sleep(0.002)
 
 
 def open_trajectory(path, need_restart: bool = False) -> h5py.File:
     """Open a trajectory for reading, checked against LAYOUT; raise TrajectoryError (one line)."""
     if Path(path).is_file() and _probe_crashes(path):
-        raise TrajectoryError(f"{path}: damaged: the HDF5 library crashes reading it")
+        raise TrajectoryError(f"{path}: damaged: the HDF5 library crashes or hangs reading it")
     try:
         f = h5py.File(path, "r")
     except FileNotFoundError:

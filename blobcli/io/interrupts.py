@@ -10,6 +10,7 @@ no write or rename is ever cut in half.
 from __future__ import annotations
 
 import signal
+import threading
 from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -52,8 +53,12 @@ def clear() -> None:
 
 @contextmanager
 def deferred():
-    """Signals arriving inside are recorded, not raised (see `pending`). Nests."""
+    """Signals arriving inside are recorded, not raised (see `pending`). Nests. Outside the main
+    thread (a Dask worker's task thread) signals never reach Python code, so nothing is installed."""
     global _deferring
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     install()
     _deferring += 1

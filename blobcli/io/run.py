@@ -60,19 +60,23 @@ class RunResult:
 
 
 def simulate(scene: Scene, path: str | Path | None = None, progress: bool = False,
-             resume: str | Path | None = None) -> RunResult:
+             resume: str | Path | None = None, replace_stale_partial: bool = False) -> RunResult:
     """Run `scene` and write its trajectory to `path` (default: the scene's output path).
 
     With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new
     file starts with that run's frames and continues from its last state: the result is
     bit for bit the trajectory of a run that was never interrupted. Raises OutputError
-    (before any work) when `path` cannot be written or another run holds it."""
+    (before any work) when `path` cannot be written or another run holds it. A `<path>.partial`
+    left by a killed run is refused, unless `replace_stale_partial` (a sweep retrying a point
+    whose worker died): holding the lock proves no live run owns it."""
     path = Path(path) if path is not None else scene.output_path
     problem = output_problem(path)
     if problem:
         raise OutputError(f"{path}: {problem}")
     with interrupts.deferred(), OutputLock(path):
         interrupts.clear()
+        if replace_stale_partial:
+            path.with_name(path.name + ".partial").unlink(missing_ok=True)
         return _run_locked(scene, path, progress, resume)
 
 

@@ -29,6 +29,7 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "one_blob_1000_steps_warm_s": 1.0,
     "scaling_1000_over_100": 11.0,
     "record_every_step_overhead": 0.10,
+    "sweep_speedup_16_points": 3.0,
 }
 
 
@@ -250,6 +251,25 @@ def measure_memory(blobs: int, steps: int) -> dict:
     return {"blobs": blobs, "steps": steps, "peak_mib": peaks[steps], "peak_mib_4x_steps": peaks[4 * steps]}
 
 
+def measure_sweep(points: int, steps: int) -> dict:
+    """`points` one-blob runs of `steps` steps: through `blobsim sweep` on the local cluster,
+    against as many `blobsim run` processes one after another (what a shell loop does)."""
+    with tempfile.TemporaryDirectory() as d:
+        base = Path(d) / "one.toml"
+        base.write_text(f"[scene]\nsteps = {steps}\n" + scene_text(1, "apart"))
+        frictions = [0.1 + 0.5 * k / points for k in range(points)]
+        sweep = Path(d) / "bench.toml"
+        sweep.write_text(f'[sweep]\nscene = "one.toml"\n[[sweep.axis]]\nkey = "blob[*].friction"\n'
+                         f'values = {frictions!r}\n')
+        loop = 0.0
+        for k, friction in enumerate(frictions):
+            scene = Path(d) / f"p{k}.toml"
+            scene.write_text(base.read_text().replace('name = "b"', f'name = "b"\nfriction = {friction!r}'))
+            loop += _run_seconds(["run", str(scene), "-o", str(Path(d) / f"p{k}.h5"), "-q"], dict(os.environ))
+        swept = _run_seconds(["sweep", str(sweep), "-o", str(Path(d) / "out"), "-q"], dict(os.environ))
+    return {"points": points, "steps": steps, "loop_s": loop, "sweep_s": swept, "speedup": loop / swept}
+
+
 def run_bench(quick: bool = False) -> dict:
     counts = (1, 10) if quick else (1, 10, 100, 1000)
     repeats = 3 if quick else 5
@@ -267,6 +287,7 @@ def run_bench(quick: bool = False) -> dict:
     results["startup"] = measure_startup(2 if quick else 5)
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
+    results["sweep"] = measure_sweep(4 if quick else 16, 300)
     results["peak_rss_mib_bench"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return results
 
@@ -315,6 +336,10 @@ def format_bench(r: dict) -> str:
     m = r["memory"]
     lines.append(f"peak memory of blobsim run ({m['blobs']} blobs): {m['peak_mib']:.0f} MiB for {m['steps']} steps, "
                  f"{m['peak_mib_4x_steps']:.0f} MiB for {4 * m['steps']}")
+    sw = r["sweep"]
+    lines.append(f"{sw['points']} one-blob points of {sw['steps']} steps: blobsim sweep (local cluster) "
+                 f"{sw['sweep_s']:.2f} s vs {sw['points']} blobsim run processes {sw['loop_s']:.2f} s, "
+                 f"{sw['speedup']:.1f}x (target >= {t['sweep_speedup_16_points']:g}x)")
     return "\n".join(lines)
 
 

@@ -27,6 +27,7 @@ from ..colliders import COLLIDERS
 from ..geometry import first_crossing, ring_areas
 from ..io.h5md import read_trajectory
 from ..scene.schema import METHODS, load_scene, parse_scene, with_overrides
+from .executor import run_tasks
 
 STRESS_DIR = Path(__file__).resolve().parent / "stress_scenes"
 AREA_DRIFT = 0.10  # relative area error allowed after SETTLE
@@ -149,14 +150,14 @@ def stress_scenes(quick: bool):
         yield with_overrides(scene, duration=0.5) if quick else scene
 
 
-def stability_map(methods, out_dir: Path, quick: bool) -> dict:
+def stability_map(methods, out_dir: Path, quick: bool, scheduler=None, workers=0) -> dict:
     """Pass/fail of a blob dropped on a floor and a bump, over dt × each method's stiffness."""
     dts = [1 / 240, 1 / 60] if quick else [1 / 240, 1 / 120, 1 / 60, 1 / 30, 1 / 15]
     knobs = {"kot": ("pressure", [1.0, 2.0] if quick else [0.7, 1.0, 1.5, 2.0, 3.0]),
              "xpbd": ("pressure", [1.0, 2.0] if quick else [0.7, 1.0, 1.5, 2.0, 3.0]),
              "gas": ("gas_pressure", [20.0, 500.0] if quick else [5.0, 20.0, 100.0, 500.0, 2000.0]),
              "springs": ("spring_stiffness", [2e3, 2e5] if quick else [5e2, 2e3, 2e4, 2e5, 2e6])}
-    grid = {}
+    cells, tasks = [], []
     for method in methods:
         knob, values = knobs[method]
         for dt in dts:
@@ -180,9 +181,12 @@ kind = "circle"
 center = [0.0, 0.0]
 radius = 0.2
 """
-                scene = parse_scene(text, f"map-{method}")
-                verdict = run_one(scene, method, out_dir / "map.h5")
-                grid[(method, dt, v)] = verdict.failures
+                cells.append((method, dt, v))
+                tasks.append((parse_scene(text, f"map-{method}"), method, out_dir / f"map-{len(tasks)}.h5"))
+    grid = {}
+    for i, verdict in run_tasks(run_one, tasks, scheduler, workers, label="map"):
+        grid[cells[i]] = verdict.failures
+        tasks[i][2].unlink(missing_ok=True)
     return {"dts": dts, "knobs": knobs, "grid": grid}
 
 
@@ -213,14 +217,18 @@ def chart_map(smap: dict, methods, png: Path):
     plt.close(fig)
 
 
-def run_stress(methods=METHODS, out_dir="outputs/stress", quick=False) -> dict:
+def run_stress(methods=METHODS, out_dir="outputs/stress", quick=False, scheduler=None, workers=0) -> dict:
+    """Every stress scene with every method, then the stability map; the runs go through the
+    executor (workers = 0: in this process)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    verdicts = [run_one(scene, method, out_dir / f"{scene.name}_{method}.h5")
-                for scene in stress_scenes(quick) for method in methods]
-    smap = stability_map(methods, out_dir, quick)
+    tasks = [(scene, method, out_dir / f"{scene.name}_{method}.h5") for scene in stress_scenes(quick)
+             for method in methods]
+    verdicts = [None] * len(tasks)
+    for i, verdict in run_tasks(run_one, tasks, scheduler, workers, label="runs"):
+        verdicts[i] = verdict
+    smap = stability_map(methods, out_dir, quick, scheduler, workers)
     chart_map(smap, methods, out_dir / "stability_map.png")
-    (out_dir / "map.h5").unlink(missing_ok=True)
     with open(out_dir / "stress.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["scene", "method", "passed", "failures", "wall_time_s"])

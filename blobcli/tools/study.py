@@ -25,6 +25,7 @@ import numpy as np
 
 from ..io.h5md import read_trajectory
 from ..scene.schema import METHODS, with_overrides
+from .executor import run_tasks
 
 # (dt divisor, substeps, iterations), cheapest first
 LADDER = [(1, 1, 1), (1, 1, 2), (1, 2, 1), (1, 2, 2), (1, 4, 1), (1, 4, 2), (1, 4, 4), (2, 4, 2), (1, 8, 2),
@@ -80,7 +81,10 @@ def errors(run_path, ref_path) -> tuple[float, float, float]:
     return trajectory, area, perimeter
 
 
-def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None) -> list[Point]:
+def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None, scheduler=None,
+              workers=0) -> list[Point]:
+    """Each method's ladder against its own reference; one executor task per method (its runs
+    stay on one worker, one after another, so that their wall times compare)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if duration is not None:
@@ -90,20 +94,30 @@ def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None) ->
     steps = scene.steps
     scene = replace(scene, settings=replace(settings, steps=None, duration=steps * base_dt))
     every = max(1, steps // FRAMES)
+    tasks = [(scene, method, out_dir, every) for method in methods]
+    by_method = {}
+    for i, points in run_tasks(study_method, tasks, scheduler, workers, label="methods"):
+        by_method[methods[i]] = points
+    return [p for method in methods for p in by_method[method]]
+
+
+def study_method(scene, method, out_dir: Path, every: int) -> list[Point]:
+    """One method's ladder: its reference, a warm-up, then each setting timed and compared."""
+    settings, base_dt = scene.settings, scene.settings.dt
+    ref = out_dir / f"{method}_reference.h5"
+    _run(scene, ref, method, base_dt, settings.substeps * REFERENCE_FACTOR, settings.iterations, every)
+    warm = out_dir / f"{method}_warm.h5"
+    _run(scene, warm, method, base_dt, 1, 1, every)  # compile before timing
+    warm.unlink()
     points = []
-    for method in methods:
-        ref = out_dir / f"{method}_reference.h5"
-        _run(scene, ref, method, base_dt, settings.substeps * REFERENCE_FACTOR, settings.iterations, every)
-        _run(scene, out_dir / "warm.h5", method, base_dt, 1, 1, every)  # compile before timing
-        for divisor, substeps, iterations in LADDER:
-            out = out_dir / f"{method}_dt{divisor}_s{substeps}_i{iterations}.h5"
-            result = _run(scene, out, method, base_dt / divisor, substeps, iterations, every * divisor)
-            traj, area, perim = errors(out, ref)
-            points.append(Point(method, base_dt / divisor, substeps, iterations, result.wall_time, traj, area, perim,
-                                result.status, divisor))
-            out.unlink()
-        ref.unlink()  # the runs are only needed for their errors: keep the CSV and the chart
-    (out_dir / "warm.h5").unlink(missing_ok=True)
+    for divisor, substeps, iterations in LADDER:
+        out = out_dir / f"{method}_dt{divisor}_s{substeps}_i{iterations}.h5"
+        result = _run(scene, out, method, base_dt / divisor, substeps, iterations, every * divisor)
+        traj, area, perim = errors(out, ref)
+        points.append(Point(method, base_dt / divisor, substeps, iterations, result.wall_time, traj, area, perim,
+                            result.status, divisor))
+        out.unlink()
+    ref.unlink()  # the runs are only needed for their errors: keep the CSV and the chart
     return points
 
 

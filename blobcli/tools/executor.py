@@ -1,0 +1,87 @@
+"""Where many runs go: a Dask cluster (local by default), or this process.
+
+`blobsim sweep`, `study` and `stress` hand their runs to `run_tasks`, one code path for all
+three. With `workers = 0` the tasks run here, one after another; otherwise on Dask
+distributed: an embedded `LocalCluster` of single-threaded worker processes (one per core
+unless told), or the cluster at `scheduler` (its workers must have blobsim installed).
+Dask is imported only here, so `blobsim --help` and `blobsim run` never load it.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Callable, Iterator
+
+RETRIES = 2  # a task whose worker died (killed, out of memory) is run again elsewhere this often
+
+
+def default_workers() -> int:
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, workers: int | None = None,
+              progress: bool = False, label: str = "runs") -> Iterator[tuple[int, object]]:
+    """Yield (index, fn(*tasks[index])) as each task finishes, in any order. A task that raises
+    is re-raised here. Closing the generator (or Ctrl-C) cancels the tasks not yet finished."""
+    if not tasks:
+        return
+    if workers == 0 and scheduler is None:
+        bar = _bar(len(tasks), label, progress)
+        for i, args in enumerate(tasks):
+            result = fn(*args)
+            bar.update(1)
+            yield i, result
+        bar.close()
+        return
+    import dask
+    from distributed import Client, LocalCluster, as_completed
+    cluster = None
+    if scheduler is None:
+        # Workers fork from a server that has imported the simulator once, instead of each
+        # importing numba and loading the kernel cache from scratch (spawn).
+        import multiprocessing
+        multiprocessing.set_forkserver_preload(["blobcli.io.run", "blobcli.tools.sweep"])
+        dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
+        n = workers or default_workers()
+        # One single-threaded worker process per core, and numba's threads split between them,
+        # so workers × threads never exceeds the cores.
+        threads = str(max(1, default_workers() // n))
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
+                               host="127.0.0.1", silence_logs=40,
+                               env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"})
+    client = Client(cluster if cluster is not None else scheduler, timeout="30s")
+    bar = _bar(len(tasks), label, progress)
+    futures = {}
+    try:
+        if progress:
+            print(f"blobsim: dask dashboard at {client.dashboard_link}", file=sys.stderr)
+        futures = {client.submit(fn, *args, key=f"{label}-{i}-{os.getpid()}", pure=False, retries=RETRIES): i
+                   for i, args in enumerate(tasks)}
+        for future in as_completed(futures):
+            i = futures[future]
+            result = future.result()
+            bar.update(1)
+            yield i, result
+    finally:
+        bar.close()
+        for future in futures:
+            future.cancel()
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+class _NoBar:
+    def update(self, n):
+        pass
+
+    def close(self):
+        pass
+
+
+def _bar(total: int, label: str, progress: bool):
+    if not progress:
+        return _NoBar()
+    from tqdm import tqdm
+    return tqdm(total=total, unit=label.rstrip("s") or "run", file=sys.stderr, leave=False)
