@@ -121,6 +121,12 @@ def parser() -> argparse.ArgumentParser:
     study.add_argument("--duration", type=_positive_float, metavar="T", help="simulated seconds (default: the scene's)")
     study.add_argument("-o", "--output", default="outputs/study", metavar="DIR", help="default outputs/study")
 
+    export = sub.add_parser("export", help="write a trajectory as XDMF (ParaView, VisIt) or extended XYZ (OVITO, "
+                                           "ASE, MDAnalysis)")
+    export.add_argument("trajectory", metavar="TRAJ.h5")
+    export.add_argument("--format", required=True, choices=("xdmf", "xyz"))
+    export.add_argument("-o", "--output", metavar="OUT", help="default: beside it, <stem>_export.xdmf or .xyz")
+
     sweep = sub.add_parser("sweep", help="run a parameter sweep of a scene on a Dask cluster (local by default)",
                            description="Exit 0: every point ok; 1: some point failed; 2: a bad sweep file; "
                                        "130: interrupted (finished points and the summary are kept).")
@@ -334,6 +340,25 @@ def cmd_study(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from pathlib import Path
+
+    from .io.export import sidecars
+    source = Path(args.trajectory)
+    out = Path(args.output) if args.output else source.with_name(f"{source.stem}_export.{args.format}")
+    problems = _output_problems(*((p, "file") for p in sidecars(out, args.format)))
+    if any(p.resolve() == source.resolve() for p in sidecars(out, args.format)):
+        problems.append(f"{out}: would overwrite {source} (XDMF writes its data to {out.with_suffix('.h5')}); "
+                        f"choose another -o")
+    if problems:
+        return _fail(problems)
+    from .io.export import export
+    frames = export(source, out, args.format)
+    print(f"blobsim: exported {frames} frames of {source} to {out}"
+          + (f" (heavy data in {out.with_suffix('.h5')})" if args.format == "xdmf" else ""))
+    return 0
+
+
 def cmd_sweep(args) -> int:
     from pathlib import Path
 
@@ -406,7 +431,7 @@ def cmd_compare(args) -> int:
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
             "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress,
-            "study": cmd_study, "sweep": cmd_sweep}
+            "study": cmd_study, "sweep": cmd_sweep, "export": cmd_export}
 
 
 def main(argv=None) -> int:

@@ -22,5 +22,5 @@ def test_quick_bench_runs_and_reports_every_figure(tmp_path):
         assert key in report
     assert report["startup"]["cold_s"] > 0 and report["startup"]["warm_s"] > 0
     for line in ("core substep", "blobsim run, 1 blob, 1000 steps", "recording every step", "peak memory",
-                 "one-blob points of 300 steps: blobsim sweep"):
+                 "one-blob points of 50 steps: blobsim sweep"):
         assert line in r.stdout

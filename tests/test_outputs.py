@@ -82,7 +82,7 @@ def pending_after(monkeypatch, calls: int, signum=signal.SIGINT):
 # 1 ---------------------------------------------------------------------------------------
 def test_1_a_second_run_on_the_same_output_is_refused_naming_the_first(tmp_path):
     out = tmp_path / "c.h5"
-    first = start_run([scene_file(tmp_path, LONG)], out, min_bytes=1 << 16)
+    first = start_run([scene_file(tmp_path, LONG)], out)  # a first block of frames is on disk
     try:
         code, _, err = cli("run", scene_file(tmp_path), "-o", out, "-q")
         assert code == 2 and f"another blobsim run (pid {first.pid}) is writing this file" in err

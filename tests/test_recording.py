@@ -61,9 +61,24 @@ def test_recording_content_statics_series_colors(recorded):
                                                                                   "heavy_0_2"]
     series = [c for c in chunks if c.entity_path == "/series/kinetic_energy" and not c.is_static]
     assert sum(c.num_rows for c in series) == 91
-    blobs = [c for c in chunks if c.entity_path == "/world/blobs"]
-    assert all("sim_time" in c.timeline_names for c in blobs)
+    blobs = [c for c in chunks if c.entity_path == "/world/blobs" and not c.is_static]
+    assert blobs and all("sim_time" in c.timeline_names for c in blobs)
     np.testing.assert_array_equal(blob_colors(4), blob_colors(10)[:4])  # stable from run to run
+    for entity in ("/world/blobs", "/world/vertices", "/world/statics"):  # drawn y-up (rerun's 2D is y-down)
+        flip = [c for c in chunks if c.entity_path == entity and c.is_static]
+        batch = flip[0].to_record_batch()
+        scale = [name for name in batch.column_names if name.endswith(":scale")]
+        assert scale and list(batch.column(scale[0]).to_pylist()[0][0]) == [1.0, -1.0, 1.0], entity
+    for path in ("area_error/max", "area_error/mean", "kinetic_energy/total"):
+        rows = [c for c in chunks if c.entity_path == f"/series/summary/{path}" and not c.is_static]
+        assert sum(c.num_rows for c in rows) == 91, path
+
+
+def test_each_scene_has_its_own_application_id(recorded):
+    import rerun.chunk as rc
+    run, replayed = (rc.RrdReader(str(recorded / name)).recordings()[0] for name in ("c.rrd", "replayed.rrd"))
+    assert run.application_id == replayed.application_id == "blobsim-crusher"  # the scene's, not a shared one
+    assert run.recording_id != replayed.recording_id  # two recordings open side by side stay apart
 
 
 def test_replay_makes_the_same_recording_as_run(recorded):

@@ -1,4 +1,4 @@
-"""Trajectory files: H5MD 1.1, blobsim format version 1 (a contract: docs/output-format.md).
+"""Trajectory files: H5MD 1.1, blobsim format version 2 (a contract: docs/output-format.md).
 
 The layout, `LAYOUT` below, is the one copy of the schema: docs/output-format.md shows it
 verbatim (a test keeps the two equal) and `trajectory_problems` checks every file read
@@ -22,23 +22,30 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READS_FORMATS = (1, 2)  # format 1 lacks /connectivity, particles/blobs/mass and the units module
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 1, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 2, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
-    author                   attrs: name
-    creator                  attrs: name = "blobsim", version
+    author                   attrs: name (fixed-length ASCII)
+    creator                  attrs: name = "blobsim", version (fixed-length ASCII)
+    modules/units            attrs: version = [1, 0], system = "SI"
 /particles/blobs
     box                      attrs: dimension = 2, boundary = ["none", "none"]
-    position/value           float64 [frames, vertices, 2]  (m)
+    position/value           float64 [frames, vertices, 2]  unit "m"
     position/step            int64   [frames]
-    position/time            float64 [frames]  (s, = step × dt)
+    position/time            float64 [frames]  unit "s" (= step × dt)
+    mass                     float64 [vertices]  unit "kg" (each vertex's share of its blob)
+/connectivity
+    edges                    int64 [vertices, 2]: vertex index pairs, each ring's closed polyline
+      attrs: particles_group = reference to /particles/blobs
 /observables
-    area/{value,step,time}            value float64 [frames, blobs]  (m², positive)
-    kinetic_energy/{value,step,time}  value float64 [frames, blobs]  (J)
+    area/{value,step,time}            value float64 [frames, blobs]  unit "m+2" (positive)
+    kinetic_energy/{value,step,time}  value float64 [frames, blobs]  unit "J"
 /parameters
     blob_offsets             int64 [blobs + 1]: blob b owns vertices offsets[b]:offsets[b+1]
     blob_names               str   [blobs]
@@ -66,16 +73,21 @@ DISK_RESERVE = 1 << 20  # bytes: a block is written only if this much stays free
 #                         the closing attributes); HDF5 cannot recover from a write the disk refuses
 
 
+def ascii(text: str) -> np.bytes_:
+    """A fixed-length ASCII string, as H5MD asks for names and units (non-ASCII becomes ?)."""
+    return np.bytes_(text.encode("ascii", "replace"))
+
+
 def _series(group, name, shape, dtype=np.float64, unit=None, chunk=1):
     """An H5MD time-dependent element: value [frames, *shape], step, time."""
     g = group.create_group(name)
     v = g.create_dataset("value", shape=(0, *shape), maxshape=(None, *shape), dtype=dtype,
                          chunks=(chunk, *shape))
     if unit:
-        v.attrs["unit"] = unit
+        v.attrs["unit"] = ascii(unit)
     g.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(max(chunk, 256),))
     t = g.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(max(chunk, 256),))
-    t.attrs["unit"] = "s"
+    t.attrs["unit"] = ascii("s")
     return g
 
 
@@ -119,18 +131,25 @@ class TrajectoryWriter:
         f.attrs["blobsim_format"] = FORMAT_VERSION
         h5 = f.create_group("h5md")
         h5.attrs["version"] = np.array([1, 1], dtype=np.int32)
-        h5.create_group("author").attrs["name"] = os.environ.get("USER", "blobsim user")
+        h5.create_group("author").attrs["name"] = ascii(os.environ.get("USER", "blobsim user"))
         creator = h5.create_group("creator")
-        creator.attrs["name"] = "blobsim"
-        creator.attrs["version"] = __version__
+        creator.attrs["name"] = ascii("blobsim")
+        creator.attrs["version"] = ascii(__version__)
+        units = h5.create_group("modules/units")
+        units.attrs["version"] = np.array([1, 0], dtype=np.int32)
+        units.attrs["system"] = ascii("SI")
 
         particles = f.create_group("particles/blobs")
         box = particles.create_group("box")
         box.attrs["dimension"] = 2
         box.attrs["boundary"] = np.array([b"none", b"none"])
         self.position = _series(particles, "position", (n, 2), unit="m", chunk=self.block)
+        particles.create_dataset("mass", data=1.0 / model.inv_mass).attrs["unit"] = ascii("kg")
+        edges = f.create_group("connectivity").create_dataset(
+            "edges", data=np.stack([np.arange(n), ring_next(model.offsets)], axis=1).astype(np.int64))
+        edges.attrs["particles_group"] = particles.ref
         obs = f.create_group("observables")
-        self.area = _series(obs, "area", (b,), unit="m^2", chunk=self.block)
+        self.area = _series(obs, "area", (b,), unit="m+2", chunk=self.block)
         self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
 
         p = f.create_group(PARAMETERS)
@@ -293,8 +312,13 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
     attrs = f.attrs
     if "blobsim_format" not in attrs or "complete" not in attrs:
         return ["root attributes blobsim_format and complete are missing"]
-    if int(np.asarray(attrs["blobsim_format"]).flat[0]) != FORMAT_VERSION:
-        return [f"blobsim format {attrs['blobsim_format']} (this blobsim reads format {FORMAT_VERSION})"]
+    try:
+        version = int(np.asarray(attrs["blobsim_format"]).flat[0])
+    except (TypeError, ValueError):
+        version = None
+    if version not in READS_FORMATS:
+        return [f"blobsim format {attrs['blobsim_format']} (this blobsim reads formats "
+                f"{', '.join(map(str, READS_FORMATS))})"]
     p = PARAMETERS
     first = [_shape_problem(f, f"{p}/blob_offsets", (None,), "iu"),
              _shape_problem(f, f"{POSITION}/value", (None, None, 2))]
@@ -448,8 +472,9 @@ def _resume_problems(f, path, scene, params) -> list[str]:
 def stored_scene(f, path):
     """The validated scene stored in an open trajectory file; TrajectoryError if it is not valid."""
     from ..scene.schema import SceneError, parse_scene
+    source = text(f[PARAMETERS].attrs.get("source", "")) or str(path)  # so the name is the scene's own
     try:
-        return parse_scene(text(f[PARAMETERS]["scene"][()]), str(path))
+        return parse_scene(text(f[PARAMETERS]["scene"][()]), source)
     except SceneError as e:
         raise TrajectoryError(f"{path}: its stored scene is not valid: {e.problems[0]}") from None
     except UnicodeDecodeError:

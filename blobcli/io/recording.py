@@ -7,10 +7,19 @@ Layout of a recording (timelines `step`, a sequence, and `sim_time`, a duration 
     world/statics/<i>        the static colliders, logged once as static data
     series/area_error        Scalars: one series per blob, (|A| - A_target) / A_target
     series/kinetic_energy    Scalars: one series per blob, J
+    series/summary/area_error/{max,mean}   over the blobs
+    series/summary/kinetic_energy/total    J
 
-plus a default blueprint: the 2D view framed on the scene beside the two time-series panels.
-Frames are sent in batches with the columnar API (`send_columns`), which is several times
-faster than logging frame by frame.
+Positions are logged in physics coordinates (y up). Rerun's 2D views draw y down and have no
+y-up option (rerun issue #1387), so world/blobs, world/vertices and world/statics carry a
+static Transform3D that scales y by -1, and the view's bounds are flipped to match: the scene
+is drawn the right way up, and hovering still shows the logged (physics) coordinates.
+
+The default blueprint shows the 2D view framed on the scene beside the summary series; the
+per-blob series are in the recording, to add to a view, and their legends are hidden past
+LEGEND_BLOBS blobs. The application id is `blobsim-<scene name>`, so that rerun keeps one
+blueprint per scene when several recordings are open. Frames are sent in batches with the
+columnar API (`send_columns`), several times faster than logging frame by frame.
 """
 
 from __future__ import annotations
@@ -23,6 +32,8 @@ import numpy as np
 from ..colliders import COLLIDERS
 
 BATCH_FRAMES = 64  # frames per send_columns call
+LEGEND_BLOBS = 8  # per-blob legends are shown up to this many blobs
+Y_UP = [1.0, -1.0, 1.0]  # the scale that draws physics' y-up in rerun's y-down 2D views
 
 
 def blob_colors(count: int) -> np.ndarray:
@@ -35,7 +46,8 @@ def blob_colors(count: int) -> np.ndarray:
 class RerunRecorder:
     """Streams frames into a .rrd file (`append`, then `close`)."""
 
-    def __init__(self, path, scene, offsets, names, target_area, dt, first_positions):
+    def __init__(self, path, scene, offsets, names, target_area, dt, reach):
+        """reach: (2, 2) [[xmin, ymin], [xmax, ymax]] of the vertices over the whole run (m)."""
         import rerun as rr
         import rerun.blueprint as rrb
         self.rr = rr
@@ -50,21 +62,36 @@ class RerunRecorder:
                                       for o, e in zip(self.offsets[:-1], self.offsets[1:])])
         self.strip_ends = np.cumsum(np.diff(self.offsets) + 1)[:-1]
 
-        lo, hi = first_positions.min(axis=0), first_positions.max(axis=0)
-        finite = [s for s in scene.statics if s.kind != "plane"]
-        for s in finite:
-            strip = COLLIDERS[s.kind].outline(s, 0.0)
+        lo, hi = np.asarray(reach[0], dtype=float), np.asarray(reach[1], dtype=float)
+        middle = (lo + hi) / 2
+        for s in scene.statics:
+            if s.kind == "plane":  # infinite: frame the stretch of it nearest the blobs
+                n = np.array(s.normal) / np.hypot(*s.normal)
+                strip = middle - ((middle - s.point) @ n) * n
+                strip = strip[None, :]
+            else:
+                strip = COLLIDERS[s.kind].outline(s, 0.0)
             lo, hi = np.minimum(lo, strip.min(axis=0)), np.maximum(hi, strip.max(axis=0))
         pad = 0.1 * max(hi[0] - lo[0], hi[1] - lo[1], 1.0)
         lo, hi = lo - pad, hi + pad
+        legend = rrb.PlotLegend(visible=len(self.offsets) - 1 <= LEGEND_BLOBS)
         blueprint = rrb.Blueprint(rrb.Horizontal(
-            rrb.Spatial2DView(origin="world", name=scene.name,
-                              visual_bounds=rrb.VisualBounds2D(x_range=[lo[0], hi[0]], y_range=[lo[1], hi[1]])),
-            rrb.Vertical(rrb.TimeSeriesView(origin="series/area_error", name="area error"),
-                         rrb.TimeSeriesView(origin="series/kinetic_energy", name="kinetic energy (J)")),
+            rrb.Spatial2DView(origin="world", name=scene.name,  # bounds in the flipped (drawn) frame
+                              visual_bounds=rrb.VisualBounds2D(x_range=[lo[0], hi[0]], y_range=[-hi[1], -lo[1]])),
+            rrb.Vertical(rrb.TimeSeriesView(origin="series/summary/area_error", name="area error (max, mean)"),
+                         rrb.TimeSeriesView(origin="series/summary/kinetic_energy", name="kinetic energy (J)"),
+                         rrb.TimeSeriesView(origin="series/area_error", name="area error per blob",
+                                            plot_legend=legend, visible=False),
+                         rrb.TimeSeriesView(origin="series/kinetic_energy", name="kinetic energy per blob (J)",
+                                            plot_legend=legend, visible=False)),
             column_shares=[3, 2]))
-        self.rec = rr.RecordingStream("blobsim", recording_id=scene.name)
+        import re
+        import uuid
+        app = "blobsim-" + re.sub(r"[^A-Za-z0-9_-]", "_", scene.name)
+        self.rec = rr.RecordingStream(app, recording_id=str(uuid.uuid4()))
         self.rec.save(self.path, default_blueprint=blueprint)
+        for entity in ("world/blobs", "world/vertices", "world/statics"):
+            self.rec.log(entity, rr.Transform3D(scale=Y_UP), static=True)
         extent = 2.0 * max(hi[0] - lo[0], hi[1] - lo[1])
         for i, s in enumerate(scene.statics):
             outline = COLLIDERS[s.kind].outline(s, extent)
@@ -72,6 +99,10 @@ class RerunRecorder:
                                                                 radii=[0.01]), static=True)
         for series in ("area_error", "kinetic_energy"):
             self.rec.log(f"series/{series}", rr.SeriesLines(names=list(names), colors=self.colors), static=True)
+        for path, color in (("area_error/max", [230, 90, 70]), ("area_error/mean", [90, 150, 230]),
+                            ("kinetic_energy/total", [230, 180, 60])):
+            self.rec.log(f"series/summary/{path}", rr.SeriesLines(names=[path.split("/")[1]], colors=[color]),
+                         static=True)
         self._steps, self._pos, self._area_error, self._kinetic = [], [], [], []
         self.frames = 0
 
@@ -98,9 +129,14 @@ class RerunRecorder:
         self.rec.send_columns("world/vertices", indexes=times, columns=rr.Points2D.columns(
             positions=pos.reshape(-1, 2), radii=np.full(pos.shape[0] * pos.shape[1], 0.008, np.float32)).partition(
             [pos.shape[1]] * frames))
-        for name, values in (("area_error", self._area_error), ("kinetic_energy", self._kinetic)):
-            self.rec.send_columns(f"series/{name}", indexes=times, columns=rr.Scalars.columns(
-                scalars=np.concatenate(values)).partition([blobs] * frames))
+        area_error, kinetic = np.stack(self._area_error), np.stack(self._kinetic)  # (F, B)
+        for series, values in (("area_error", area_error), ("kinetic_energy", kinetic)):
+            self.rec.send_columns(f"series/{series}", indexes=times, columns=rr.Scalars.columns(
+                scalars=values.ravel()).partition([blobs] * frames))
+        for path, values in (("area_error/max", np.abs(area_error).max(axis=1)),
+                             ("area_error/mean", np.abs(area_error).mean(axis=1)),
+                             ("kinetic_energy/total", kinetic.sum(axis=1))):
+            self.rec.send_columns(f"series/summary/{path}", indexes=times, columns=rr.Scalars.columns(scalars=values))
         self.frames += frames
         self._steps, self._pos, self._area_error, self._kinetic = [], [], [], []
 
@@ -118,9 +154,17 @@ def replay(h5_path, rrd_path) -> int:
         scene = stored_scene(f, h5_path)
         pos = f[POSITION]
         area, kinetic = f[AREA]["value"], f[KINETIC]["value"]
-        recorder = RerunRecorder(rrd_path, scene, p["blob_offsets"][...], [text(n) for n in p["blob_names"][...]],
-                                 p["target_area"][...], float(p.attrs["dt"]), pos["value"][0])
         steps = pos["step"][...]
+        reach = np.array([[np.inf, np.inf], [-np.inf, -np.inf]])
+        for start in range(0, len(steps), BATCH_FRAMES):  # where the blobs go, to frame the view on
+            block = pos["value"][start:start + BATCH_FRAMES].reshape(-1, 2)
+            block = block[np.all(np.isfinite(block), axis=1)]
+            if len(block):
+                reach = np.array([np.minimum(reach[0], block.min(axis=0)), np.maximum(reach[1], block.max(axis=0))])
+        if not np.all(np.isfinite(reach)):
+            reach = np.zeros((2, 2))
+        recorder = RerunRecorder(rrd_path, scene, p["blob_offsets"][...], [text(n) for n in p["blob_names"][...]],
+                                 p["target_area"][...], float(p.attrs["dt"]), reach)
         try:
             for start in range(0, len(steps), BATCH_FRAMES):
                 stop = min(start + BATCH_FRAMES, len(steps))

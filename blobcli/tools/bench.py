@@ -287,7 +287,7 @@ def run_bench(quick: bool = False) -> dict:
     results["startup"] = measure_startup(2 if quick else 5)
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
-    results["sweep"] = measure_sweep(4 if quick else 16, 300)
+    results["sweep"] = measure_sweep(2 if quick else 16, 50 if quick else 300)
     results["peak_rss_mib_bench"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return results
 
