@@ -1,10 +1,14 @@
 """Shared tolerances, fixtures and helpers. Every numerical tolerance of the suite lives here,
 with what it bounds; tests take test *inputs* (a compare --atol to exercise, a drop height) inline."""
 
+import contextlib
+import io
+import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -98,3 +102,32 @@ def start_run(args, out: Path, min_bytes: int = 1 << 20, timeout: float = 120.0)
         time.sleep(0.02)
     proc.kill()
     raise AssertionError(f"run did not write {min_bytes} bytes of frames within {timeout} s: {proc.communicate()}")
+
+
+def cli(*args):
+    """main() in this process: (exit code, stdout, stderr); the signal handlers are put back."""
+    from blobcli.cli import main
+    from blobcli.io import interrupts
+    saved = {s: signal.getsignal(s) for s in interrupts.SIGNALS}
+    out, err = io.StringIO(), io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as e:  # argparse
+                code = e.code
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    return code, out.getvalue(), err.getvalue()
+
+
+def blobsim(*args, env=None, cwd=None):
+    """`blobsim ARGS` as a user runs it: in this process (main(), the same code and exit codes,
+    without a Python start-up per call), or as a real process when the environment or the
+    working directory matters. Returns an object with returncode, stdout and stderr."""
+    if env is None and cwd is None:
+        code, out, err = cli(*args)
+        return SimpleNamespace(returncode=code, stdout=out, stderr=err)
+    return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
+                          timeout=300, env=env, cwd=cwd)

@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import start_run
+from conftest import blobsim, start_run
 
 from blobcli import read_trajectory
 
@@ -16,9 +16,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
 
 
-def blobsim(*args, cwd=None, **kw):
-    return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=300, **kw)
 
 
 def write(tmp_path, text, name="s.toml"):

@@ -4,14 +4,12 @@ import json
 import os
 import shutil
 import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-from conftest import COMPARE_REPORT, GOLDEN_ATOL, start_run
+from conftest import COMPARE_REPORT, GOLDEN_ATOL, blobsim, start_run
 from golden_cases import (
     GOLDEN,
     HASH_SCENE,
@@ -28,9 +26,6 @@ ROOT = Path(__file__).resolve().parent.parent
 GOLDEN_DIR = ROOT / "tests" / "golden"
 
 
-def blobsim(*args, env=None, **kw):
-    return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
-                          timeout=300, env=env, **kw)
 
 
 @pytest.fixture

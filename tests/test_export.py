@@ -3,7 +3,8 @@ and extended XYZ (parsed here; OVITO, ASE and MDAnalysis read the same layout)."
 
 import h5py
 import numpy as np
-from test_outputs import ONE, cli
+from conftest import cli
+from test_outputs import ONE
 
 
 def run(tmp_path):

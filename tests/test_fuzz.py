@@ -12,9 +12,9 @@ import string
 
 import h5py
 import numpy as np
+from conftest import cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_outputs import cli
 
 from blobcli.scene.schema import TABLES
 

@@ -1,8 +1,6 @@
 """Nothing lost, nothing half-true: one regression test per defect the hostile test found
 (issue "Nothing lost, nothing half-true"), numbered as there."""
 
-import contextlib
-import io
 import os
 import signal
 import subprocess
@@ -13,14 +11,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import start_run
+from conftest import cli, start_run
 
 import blobcli.io.h5md as h5md
 import blobcli.io.interrupts as interrupts
 import blobcli.io.outputs as outputs
 import blobcli.io.run as run_module
 from blobcli import load_scene, read_trajectory, simulate
-from blobcli.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 ONE = """[scene]
@@ -35,22 +32,6 @@ point = [0.0, 0.0]
 normal = [0.0, 1.0]
 """
 LONG = ONE.replace("steps = 40", "steps = 1000000").replace('name = "solo"', 'name = "solo"\ngrid = [10, 10]\nspacing = [1.2, 1.2]')
-
-
-def cli(*args):
-    """main() in this process: (exit code, stdout, stderr); the signal handlers are put back."""
-    saved = {s: signal.getsignal(s) for s in interrupts.SIGNALS}
-    out, err = io.StringIO(), io.StringIO()
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                code = main([str(a) for a in args])
-            except SystemExit as e:  # argparse
-                code = e.code
-    finally:
-        for s, h in saved.items():
-            signal.signal(s, h)
-    return code, out.getvalue(), err.getvalue()
 
 
 def scene_file(tmp_path, text=ONE, name="s.toml"):

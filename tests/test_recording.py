@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import start_run
+from conftest import blobsim, start_run
 
 from blobcli import read_trajectory
 from blobcli.io.recording import blob_colors, read_positions
@@ -17,9 +17,6 @@ ROOT = Path(__file__).resolve().parent.parent
 RERUN = Path(sys.executable).parent / "rerun"  # the viewer/CLI that ships with rerun-sdk
 
 
-def blobsim(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
-                          timeout=300, **kw)
 
 
 @pytest.fixture(scope="module")

@@ -35,7 +35,7 @@ def test_cheapest_setting_meeting_a_tolerance():
 @pytest.mark.slow
 def test_study_command_writes_chart_and_csv(tmp_path):
     r = subprocess.run([sys.executable, "-m", "blobcli", "study", str(ROOT / "scenes" / "gish.toml"), "--methods", "kot",
-                        "springs", "--duration", "0.3", "--tol", "0.5", "-o", str(tmp_path)],
+                        "springs", "--duration", "0.3", "--tol", "0.5", "-o", str(tmp_path), "--workers", "0"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert "cheapest setting with trajectory error <= 0.5:" in r.stdout

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from test_outputs import cli
+from conftest import cli
 
 from blobcli.io.recording import blob_colors
 
