@@ -59,9 +59,6 @@ _positive_float = _number(allow_zero=False)
 _nonnegative_float = _number(allow_zero=True)
 
 
-SWEEP_METRICS = ("worst_area_error", "final_kinetic_energy", "wall_time_s", "steps")  # tools/sweep.METRICS
-
-
 def _cluster_options(command):
     command.add_argument("--scheduler", metavar="ADDRESS",
                          help="a running Dask scheduler (tcp://host:8786) instead of a local cluster")
@@ -134,9 +131,9 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("-o", "--output", default="outputs/sweeps", metavar="DIR",
                        help="points and summary go to DIR/<name>/ (default outputs/sweeps)")
     _cluster_options(sweep)
-    sweep.add_argument("--metrics", action=_CommaList, allowed=SWEEP_METRICS, default=["worst_area_error"],
-                       metavar="M", help=f"what summary.png charts (default worst_area_error; of "
-                                         f"{','.join(SWEEP_METRICS)})")
+    from .tools.sweep import METRICS  # light: no numpy, dask or matplotlib at import
+    sweep.add_argument("--metrics", action=_CommaList, allowed=METRICS, default=["worst_area_error"],
+                       metavar="M", help=f"what summary.png charts (default worst_area_error; of {','.join(METRICS)})")
     sweep.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     for command in (stress, study):
         _cluster_options(command)

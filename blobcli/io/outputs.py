@@ -36,9 +36,7 @@ def output_problem(path, suffixes=(".partial", ".lock")) -> str | None:
     """Why a file cannot be created or replaced at `path`, or None. `suffixes`: sidecar names
     that must fit too."""
     text = os.fspath(path)
-    if text == "":
-        return "is empty"
-    problem = text_problem(text)
+    problem = "is empty" if text == "" else text_problem(text)
     if problem:
         return problem
     p = Path(text)
@@ -49,27 +47,20 @@ def output_problem(path, suffixes=(".partial", ".lock")) -> str | None:
     longest = max((len((p.name + s).encode()) for s in ("", *suffixes)))
     if longest > NAME_MAX:
         return f"file name is too long ({longest} bytes with its {'/'.join(suffixes)} sidecars; at most {NAME_MAX})"
-    parent = p.parent
-    for ancestor in (parent, *parent.parents):
-        if ancestor.exists():
-            if not ancestor.is_dir():
-                return f"{ancestor} is not a directory"
-            if not os.access(ancestor, os.W_OK | os.X_OK):
-                return f"cannot write in {ancestor} (read-only or no permission)"
-            break
-    return None
+    return _place_problem(p.parent)
 
 
 def directory_problem(path) -> str | None:
     """Why `path` cannot be used (or created) as an output directory, or None."""
     text = os.fspath(path)
-    if text == "":
-        return "is empty"
-    problem = text_problem(text)
-    if problem:
-        return problem
-    p = Path(text)
-    for ancestor in (p, *p.parents):
+    problem = "is empty" if text == "" else text_problem(text)
+    return problem or _place_problem(Path(text))
+
+
+def _place_problem(directory: Path) -> str | None:
+    """Why nothing can be created at `directory` (made if missing): its nearest existing
+    ancestor must be a directory we may write in."""
+    for ancestor in (directory, *directory.parents):
         if ancestor.exists():
             if not ancestor.is_dir():
                 return f"{ancestor} is not a directory"
