@@ -18,9 +18,12 @@ def test_quick_bench_runs_and_reports_every_figure(tmp_path):
         ("apart", 1), ("apart", 10), ("piled", 1), ("piled", 10)}
     assert all(row["vertices"] == 32 * row["blobs"] for row in report["rows"])
     assert all(row["ms_per_step"] > 0 and row["ns_per_vertex_substep"] > 0 for row in report["rows"])
-    for key in ("core", "startup", "recording", "memory", "sweep"):
+    for key in ("core", "startup", "recording", "memory", "sweep", "threads", "c_reference"):
         assert key in report
+    for ref in report["c_reference"]:  # the C loop does the same work: the same bits as the numba step
+        assert ref is None or ref["same_bits"], ref
     assert report["startup"]["cold_s"] is None and report["startup"]["warm_s"] > 0  # cold: full bench only
     for line in ("core substep", "blobsim run, 1 blob, 1000 steps", "recording every step", "peak memory",
-                 "one-blob points of 10 steps: blobsim sweep"):
+                 "one-blob points of 10 steps: blobsim sweep", "thread"):
         assert line in r.stdout
+    assert ("core vs a plain C loop" in r.stdout) or ("C reference: skipped (no C compiler" in r.stdout)

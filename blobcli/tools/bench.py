@@ -30,6 +30,9 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "scaling_1000_over_100": 11.0,
     "record_every_step_overhead": 0.10,
     "sweep_speedup_16_points": 3.0,
+    "c_ratio_defaults": 2.0,
+    "c_ratio_1x1": 3.0,
+    "thread_speedup_2": 1.8,
 }
 
 
@@ -123,6 +126,84 @@ def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tupl
         step(state, model, params, clock)
         contacts.append(int((state.c_edge >= 0).sum()))
     return {k: v / steps for k, v in clock.items()}, int(np.median(contacts)), (model, params)
+
+
+def _core_scene(blobs: int, substeps: int, iterations: int) -> str:
+    """Blobs apart on a floor, damping off: only the core stages move anything."""
+    return (f"[scene]\ndamping = 0.0\nsubsteps = {substeps}\niterations = {iterations}\n"
+            + scene_text(blobs, "apart"))
+
+
+def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, repeats: int) -> dict | None:
+    """The core substep as a plain C loop (core_ref.c, built here with the system C compiler),
+    against the numba step's core stages on one thread, and whether both give the same bits.
+    None when there is no C compiler."""
+    import ctypes
+    import shutil
+
+    import numba
+
+    from ..scene.schema import parse_scene
+    from ..sim.model import build, build_params
+    from ..sim.pipeline import step
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        return None
+    scene = parse_scene(_core_scene(blobs, substeps, iterations), "bench-cref")
+    with tempfile.TemporaryDirectory() as d:
+        lib = Path(d) / "core_ref.so"
+        subprocess.run([cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o", str(lib),
+                        str(Path(__file__).with_name("core_ref.c")), "-lm"], check=True, capture_output=True)
+        c = ctypes.CDLL(str(lib))
+        model, state = build(scene)
+        params = build_params(scene)
+        blob, floor = scene.blobs[0], scene.statics[0]
+        mu_s = math.sqrt(blob.static_friction * floor.static_friction)
+        mu_k = math.sqrt(blob.friction * floor.friction)
+        arrays = [np.ascontiguousarray(a) for a in (model.offsets, state.pos.copy(), state.prev.copy(),
+                                                    state.vel.copy(), model.inv_mass, model.rest_length,
+                                                    model.compliance, np.zeros(model.vertex_count),
+                                                    model.target_area, np.zeros(model.vertex_count))]
+        ptr = ctypes.POINTER(ctypes.c_double)
+
+        def run_c(n_steps):
+            off, *floats = arrays
+            c.core_steps(ctypes.c_long(n_steps), ctypes.c_long(substeps), ctypes.c_long(iterations),
+                         ctypes.c_double(params.dt), ctypes.c_double(params.gravity[0]),
+                         ctypes.c_double(params.gravity[1]), ctypes.c_long(model.blob_count),
+                         off.ctypes.data_as(ctypes.POINTER(ctypes.c_long)), *[a.ctypes.data_as(ptr) for a in floats],
+                         ctypes.c_double(mu_s), ctypes.c_double(mu_k))
+        run_c(steps)
+        threads = numba.get_num_threads()
+        numba.set_num_threads(1)
+        try:
+            for _ in range(steps):
+                step(state, model, params)
+            same = bool(np.array_equal(arrays[1], state.pos))
+            deviation = float(np.max(np.abs(arrays[1] - state.pos)))
+            c_sec = _median_time(lambda: run_c(1), repeats, 10) / substeps
+            per_step, _, _ = _profile(_core_scene(blobs, substeps, iterations), "bench-cref", 0, 10 * repeats)
+        finally:
+            numba.set_num_threads(threads)
+    numba_sec = sum(per_step.get(k, 0.0) for k in CORE_STAGES) / substeps
+    n = model.vertex_count
+    return {"blobs": blobs, "substeps": substeps, "iterations": iterations, "same_bits": same,
+            "max_deviation_m": deviation, "c_ns": c_sec * 1e9 / n, "numba_ns": numba_sec * 1e9 / n,
+            "ratio": numba_sec / c_sec}
+
+
+def measure_threads(blobs: int, steps: int) -> dict:
+    """The core substep of blobs apart on one thread and on every thread numba has."""
+    import numba
+    threads = numba.get_num_threads()
+    out = {}
+    for n in sorted({1, threads}):
+        numba.set_num_threads(n)
+        try:
+            out[n] = measure_core(blobs, steps)["ns_per_vertex_substep"]
+        finally:
+            numba.set_num_threads(threads)
+    return {"blobs": blobs, "threads": threads, "ns_by_threads": out, "speedup": out[1] / out[threads]}
 
 
 def measure_core(blobs: int, steps: int) -> dict:
@@ -284,6 +365,9 @@ def run_bench(quick: bool = False) -> dict:
             if peer:
                 results["peer"].append(peer)
     results["core"] = measure_core(counts[-1], 10 if quick else 40)
+    results["c_reference"] = [measure_c_reference(counts[-1], s, i, 3 if quick else 10, 3 if quick else 5)
+                              for s, i in ((4, 2), (1, 1))]
+    results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
     results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
@@ -315,6 +399,20 @@ def format_bench(r: dict) -> str:
     lines.append(f"core substep (predict, perimeter, area, floor, velocities) at {c['blobs']} blobs: "
                  f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep "
                  f"(target <= {t['core_ns_per_vertex_substep_1000']:g})")
+    for ref in r["c_reference"]:
+        if ref is None:
+            lines.append("C reference: skipped (no C compiler: install gcc to compare against a plain C loop)")
+            break
+        target = t["c_ratio_defaults"] if (ref["substeps"], ref["iterations"]) == (4, 2) else t["c_ratio_1x1"]
+        lines.append(f"core vs a plain C loop over the same (N, 2) arrays at {ref['blobs']} blobs, "
+                     f"{ref['substeps']} × {ref['iterations']}, one thread: {ref['numba_ns']:.1f} vs {ref['c_ns']:.1f} "
+                     f"ns/vertex-substep, {ref['ratio']:.2f}x; "
+                     + ("same bits" if ref["same_bits"] else f"positions differ by {ref['max_deviation_m']:.1e} m")
+                     + f" (the target, <= {target:g}x, is against a structure-of-arrays C loop; this one is not)")
+    th = r["threads"]
+    lines.append(f"core at {th['blobs']} blobs: " + ", ".join(f"{ns:.1f} ns on {n} thread{'s' * (n > 1)}"
+                                                             for n, ns in th["ns_by_threads"].items())
+                 + f", {th['speedup']:.2f}x (target >= {t['thread_speedup_2']:g}x on 2)")
     if ("piled", 1000) in rows:
         lines.append(f"piled substep at 1000 blobs: {rows[('piled', 1000)]['ms_per_substep']:.2f} ms "
                      f"(target <= {t['piled_ms_per_substep_1000']:g})")
