@@ -33,6 +33,11 @@ from .outputs import OutputError, OutputLock, output_problem
 PROGRESS_SECONDS = 0.25  # the progress bar is redrawn at most this often
 
 
+class _WriteFailed(Exception):
+    """The file system refused a write of the trajectory (quota, I/O error, a disk that another
+    process filled after the free-space check): HDF5 reports these as OSError or RuntimeError."""
+
+
 @dataclass
 class RunResult:
     path: Path
@@ -92,7 +97,12 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
         area, kinetic = blob_measures(state, model)
         if n > 0:  # frame 0 is the shape as given: at rest area, not at pressure × rest area
             worst = max(worst, float(np.max(np.abs(np.abs(area) - target) / target)))
-        writer.append(n, state, area, kinetic)
+        try:
+            writer.append(n, state, area, kinetic)
+        except DiskFull:
+            raise
+        except (OSError, RuntimeError) as e:
+            raise _WriteFailed(e) from e
 
     def result(status, message="", warning="", written=True):
         return RunResult(path=path, steps=done, sim_time=done * params.dt, wall_time=time.perf_counter() - start,
@@ -145,8 +155,8 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
         status, message, warning = "failed", f"step {done + 1}: out of memory", ""
     except DiskFull as e:  # checked before each block: the file is whole up to the last block
         return _disk_full(writer, e, result)
-    except (OSError, RuntimeError) as e:  # the file system refused a write (quota, I/O error, a full disk
-        return _write_failed(writer, e, result)  # that another process filled): HDF5 reports either
+    except _WriteFailed as e:
+        return _write_failed(writer, e.__cause__, result)
     except TrajectoryError:  # the file to resume from is damaged: leave everything as it was
         writer.abandon()
         raise
