@@ -369,33 +369,9 @@ def cmd_sweep(args) -> int:
     problems = _output_problems((out, "dir"))
     if problems:
         return _fail(problems)
-    out.mkdir(parents=True, exist_ok=True)
-    rows, tasks, index = {}, [], []
-    for k, text in enumerate(sweep.texts):
-        toml, h5 = out / f"point-{k:04d}.toml", out / f"point-{k:04d}.h5"
-        if not toml.exists() or toml.read_text() != text:
-            toml.write_text(text)
-        state = sw.point_state(h5, text)
-        if state == "done":
-            rows[k] = sw.reused_row(h5)
-        else:
-            tasks.append((str(toml), str(h5), state == "resume"))
-            index.append(k)
-    print(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}",
-          file=sys.stderr)
-    from .io.interrupts import Interrupted
-    from .tools.executor import run_tasks
-    interrupted = False
-    try:
-        for i, row in run_tasks(sw.run_point, tasks, args.scheduler, args.workers,
-                                progress=not args.quiet and sys.stderr.isatty(), label="points"):
-            rows[index[i]] = row
-    except (KeyboardInterrupt, Interrupted):
-        interrupted = True
-        for k in set(range(len(sweep.points))) - set(rows):  # finished on a worker, not yet reported
-            h5 = out / f"point-{k:04d}.h5"
-            if sw.point_state(h5, sweep.texts[k]) == "done":
-                rows[k] = sw.reused_row(h5)
+    rows, interrupted = sw.run_sweep(sweep, out, args.scheduler, args.workers,
+                                     progress=not args.quiet and sys.stderr.isatty(),
+                                     announce=lambda line: print(line, file=sys.stderr))
     summary = sw.write_summary(sweep, rows, out)
     sw.chart(sweep, rows, out / "summary.png", args.metrics)
     ok = sum(r["status"] == "ok" for r in rows.values())

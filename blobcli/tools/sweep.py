@@ -134,8 +134,7 @@ def load_sweep(path) -> Sweep:
         problems.add(("sweep", "axis"), f"makes {len(points):,} points; at most {MAX_POINTS:,}", show_got=False)
         raise SceneError(problems.items)
     texts = []
-    import tomli as _tomli
-    base_raw = _tomli.loads(base_scene.text)
+    base_raw = tomli.loads(base_scene.text)
     for k, values in enumerate(points):
         doc = _with_values(base_raw, axes, values)
         try:
@@ -207,6 +206,38 @@ def _toml_text(doc: dict) -> str:
 
 
 # --- running ------------------------------------------------------------------------------
+
+def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=False,
+              announce=print) -> tuple[dict, bool]:
+    """Write each point's scene, run the points that are not done (resuming interrupted ones)
+    through the executor, and return ({point: summary row}, interrupted). A Ctrl-C stops the
+    loop; points a worker finished but had not yet reported are read back from their files."""
+    from ..io.interrupts import Interrupted
+    from .executor import run_tasks
+    out.mkdir(parents=True, exist_ok=True)
+    rows, tasks, index = {}, [], []
+    for k, text in enumerate(sweep.texts):
+        toml, h5 = out / f"point-{k:04d}.toml", out / f"point-{k:04d}.h5"
+        if not toml.exists() or toml.read_text() != text:
+            toml.write_text(text)
+        state = point_state(h5, text)
+        if state == "done":
+            rows[k] = reused_row(h5)
+        else:
+            tasks.append((str(toml), str(h5), state == "resume"))
+            index.append(k)
+    announce(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}")
+    try:
+        for i, row in run_tasks(run_point, tasks, scheduler, workers, progress=progress, label="points"):
+            rows[index[i]] = row
+    except (KeyboardInterrupt, Interrupted):
+        for k in set(range(len(sweep.points))) - set(rows):
+            h5 = out / f"point-{k:04d}.h5"
+            if point_state(h5, sweep.texts[k]) == "done":
+                rows[k] = reused_row(h5)
+        return rows, True
+    return rows, False
+
 
 def run_point(point_toml: str, h5: str, resume: bool) -> dict:
     """Run one point (on a worker): its summary row, with status ok / failed: reason."""
