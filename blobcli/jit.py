@@ -11,24 +11,55 @@ import types
 
 import numba
 
-kernel = numba.njit(cache=True, error_model="numpy", nogil=True)
-inline_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
-# Loops over independent blobs or vertices (each iteration writes only its own) use
-# numba.prange, and results do not depend on the number of threads.
-parallel_kernel = numba.njit(cache=True, error_model="numpy", nogil=True, parallel=True)
+FLAGS = dict(cache=True, error_model="numpy", nogil=True)
+kernel = numba.njit(**FLAGS)
+inline_kernel = numba.njit(inline="always", **FLAGS)
 
-def stage_kernel(fn):
-    """A stage kernel whose outer loop is a numba.prange, built twice: [False] serial (prange
-    runs as range), [True] parallel; stages pick by model.parallel (from 32 blobs). Both give
-    the same bits.
+_STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, Python function, flags)
+_TWINS: dict[int, object] = {}  # id(serial build) -> parallel build
+
+
+def stage_kernel(fn=None, **flags):
+    """A stage kernel: returns its serial build (numba.prange runs as range); `parallel(k)` gives
+    the same code built with parallel=True, which stages use from 32 blobs (model.parallel).
+    Both give the same bits: a prange loop's iterations write only their own slots.
+
+    A stage kernel may call other stage kernels (the step's driver calls them all): in the
+    parallel build, each one it names is its parallel build too. So the step is compiled twice,
+    serial and parallel, from one text.
 
     Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step
-    3× slower (0.105 against 0.034 ms), while at 1,000 blobs the parallel builds are far
-    faster, on one thread too (the perimeter sweep: 16.7 ns per edge serial, 7.1 parallel on
-    one thread, 3.7 on two). The parallel build compiles a renamed copy of fn: numba's disk
-    cache keys a kernel by its name and bytecode, not its flags, so two builds of one function
-    would overwrite each other's cache (numba issue #6845).
+    3× slower, while at 1,000 blobs the parallel builds are far faster, on one thread too (the
+    perimeter sweep: 16.7 ns per edge serial, 7.1 parallel on one thread, 3.7 on two).
     """
-    code = fn.__code__.replace(co_name=fn.__name__ + "_parallel", co_qualname=fn.__qualname__ + "_parallel")
-    twin = types.FunctionType(code, fn.__globals__, code.co_name, fn.__defaults__, fn.__closure__)
-    return kernel(fn), parallel_kernel(twin)
+    if fn is None:
+        return lambda f: stage_kernel(f, **flags)
+    serial = numba.njit(**{**FLAGS, **flags})(fn)
+    _STAGES[id(serial)] = (serial, fn, flags)
+    return serial
+
+
+def parallel(serial):
+    """The parallel build of a stage kernel, compiled from a renamed copy of its code (numba's disk
+    cache keys a kernel by its name and bytecode, not its flags, so two builds of one function
+    would overwrite each other's cache: numba issue #6845) whose globals name the parallel builds
+    of the stage kernels it calls. Built on first use, when every module it names is loaded."""
+    twin = _TWINS.get(id(serial))
+    if twin is None:
+        _, fn, flags = _STAGES[id(serial)]
+        scope = dict(fn.__globals__)
+        code = fn.__code__.replace(co_name=fn.__name__ + "_parallel", co_qualname=fn.__qualname__ + "_parallel")
+        function = types.FunctionType(code, scope, code.co_name, fn.__defaults__, fn.__closure__)
+        # parallel=True where the code has prange loops of its own; a stage that only calls others
+        # (the driver, say) is parallel through them
+        own_loops = "prange" in fn.__code__.co_names
+        twin = _TWINS[id(serial)] = numba.njit(**{**FLAGS, **flags, "parallel": own_loops})(function)
+        for name, value in scope.items():  # after registering the twin: a module's kernels name each other
+            if id(value) in _STAGES:
+                scope[name] = parallel(value)
+    return twin
+
+
+def build(serial, is_parallel: bool):
+    """The serial or the parallel build of a stage kernel."""
+    return parallel(serial) if is_parallel else serial

@@ -6,7 +6,7 @@ from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, PROJECTION_ROUNDOFF, poly
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from blobcli.sim.area import _area_kot
+from blobcli.sim.area import area_kot
 
 
 def star_polygon(rng, n, wobble):
@@ -17,11 +17,11 @@ def star_polygon(rng, n, wobble):
 
 
 def project(points, target, inv_mass=None):
-    pos = np.ascontiguousarray(points, dtype=np.float64).copy()
-    n = len(pos)
+    pos = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (2, n), as the kernels read it
+    n = pos.shape[1]
     inv_mass = np.ones(n) if inv_mass is None else inv_mass
-    _area_kot[False](pos, inv_mass, np.array([0, n], dtype=np.int64), np.array([target]))
-    return pos
+    area_kot(pos, inv_mass, np.array([0, n], dtype=np.int64), np.array([target]))
+    return pos.T
 
 
 @settings(max_examples=200, deadline=None)

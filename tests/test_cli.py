@@ -171,27 +171,38 @@ def test_killed_run_never_leaves_an_unreadable_file_at_the_path(tmp_path):
     assert not out.exists()  # only the .partial holds the unfinished run
 
 
-def test_runaway_stops_with_exit_1_naming_step_blob_vertex(tmp_path, monkeypatch):
-    """A stage that produces NaN at step 5: the run stops there and keeps frames 0..4."""
-    import blobcli.io.run as run_module
-    from blobcli import parse_scene
-    real_step = run_module.step
-    calls = []
-
-    def exploding_step(state, model, params):
-        real_step(state, model, params)
-        calls.append(1)
-        if len(calls) == 5:
-            state.pos[40, 1] = np.nan
-
-    monkeypatch.setattr(run_module, "step", exploding_step)
-    scene = parse_scene(ONE_BLOB.replace("[[blob]]", "[[blob]]\nname = \"a\"\ncenter = [5.0, 1.0]\nradius = 0.5\n[[blob]]", 1),
-                        "s.toml")
-    result = run_module.simulate(scene, tmp_path / "o.h5")
+def test_runaway_stops_with_exit_1_naming_step_blob_vertex(tmp_path):
+    """A blob thrown at 1.3e7 m/s passes RUNAWAY (1e6 m) in step 5 (x = 1.3e7 n / 60 m): the run stops
+    there and keeps frames 0..4."""
+    from blobcli import parse_scene, simulate
+    scene = parse_scene(ONE_BLOB.replace('name = "solo"', 'name = "solo"\nvelocity = [1.3e7, 0.0]').replace(
+        "[[blob]]", "[[blob]]\nname = \"a\"\ncenter = [5.0, 1.0]\nradius = 0.5\n[[blob]]", 1), "s.toml")
+    result = simulate(scene, tmp_path / "o.h5")
     assert result.status == "runaway" and result.exit_code == 1
-    assert result.message.startswith("step 5: blob 1 (solo) vertex 8 ")
+    assert result.message.startswith("step 5: blob 1 (solo) vertex 0 "), result.message
     t = read_trajectory(tmp_path / "o.h5")
     assert not t.complete and list(t.step) == [0, 1, 2, 3, 4]
+
+
+def test_python_runs_once_per_recorded_frame_not_per_step(tmp_path, monkeypatch):
+    """The step runs in compiled calls of many steps: with every = 10, Python is entered about once
+    per recorded frame (a few more calls while the call length grows), and no call crosses a
+    frame, so every frame is recorded; the frames equal a run that records every step."""
+    import blobcli.io.run as run_module
+    from blobcli import parse_scene, simulate
+    real_advance, calls = run_module.advance, []
+
+    def counting_advance(state, model, params, steps, **kwargs):
+        calls.append(steps)
+        return real_advance(state, model, params, steps, **kwargs)
+    monkeypatch.setattr(run_module, "advance", counting_advance)
+    text = ONE_BLOB.replace("steps = 120", "steps = 200")
+    simulate(parse_scene(text + "[output]\nevery = 10\n", "s.toml"), tmp_path / "ten.h5")
+    assert sum(calls) == 200 and len(calls) <= 200 // 10 + 4, calls
+    simulate(parse_scene(text, "s.toml"), tmp_path / "one.h5")
+    ten, one = read_trajectory(tmp_path / "ten.h5"), read_trajectory(tmp_path / "one.h5")
+    assert list(ten.step) == list(range(0, 201, 10))
+    assert ten.position.tobytes() == one.position[::10].tobytes()
 
 
 def test_two_runs_are_bit_identical(tmp_path):

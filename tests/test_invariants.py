@@ -55,9 +55,9 @@ def test_free_blob_never_moves_its_centre_of_mass(seed, n, pressure, compliance,
     model, state = build(sc)
     params = build_params(sc)
     rng = np.random.default_rng(seed)
-    state.pos += rng.normal(0, 0.05, state.pos.shape)  # deform it
+    state.pos[...] += rng.normal(0, 0.05, state.pos.shape)  # deform it
     state.vel[:] = rng.normal(0, 2.0, state.vel.shape)
-    state.vel -= state.vel.mean(axis=0)  # zero momentum (equal vertex masses)
+    state.vel[...] -= state.vel.mean(axis=0)  # zero momentum (equal vertex masses)
     c0 = com(state, model)
     for _ in range(60):
         step(state, model, params)

@@ -136,14 +136,14 @@ def test_3_interrupt_before_the_first_step_leaves_an_older_file_alone(tmp_path, 
 
 
 def test_3_a_crash_inside_the_loop_is_never_marked_complete(tmp_path, monkeypatch):
-    real_step, calls = run_module.step, {"n": 0}
+    real_advance, calls = run_module.advance, {"n": 0}
 
-    def crashing_step(*args):
+    def crashing_advance(*args, **kwargs):  # one step per call here: the scene records every step
         calls["n"] += 1
         if calls["n"] > 3:
             raise ZeroDivisionError("a bug")
-        real_step(*args)
-    monkeypatch.setattr(run_module, "step", crashing_step)
+        return real_advance(*args, **kwargs)
+    monkeypatch.setattr(run_module, "advance", crashing_advance)
     code, _, err = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 1 and "internal error: ZeroDivisionError: a bug" in err and "Traceback" not in err
     t = h5py.File(tmp_path / "o.h5")
@@ -152,11 +152,11 @@ def test_3_a_crash_inside_the_loop_is_never_marked_complete(tmp_path, monkeypatc
 
 
 def test_3_out_of_memory_inside_the_loop_is_a_failed_run(tmp_path, monkeypatch):
-    def no_memory(*args):
+    def no_memory(*args, **kwargs):
         raise MemoryError
-    monkeypatch.setattr(run_module, "step", no_memory)
-    code, out, _ = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
-    assert code == 1 and "blobsim: failed" in out
+    monkeypatch.setattr(run_module, "advance", no_memory)
+    code, out, err = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
+    assert code == 1 and "blobsim: failed" in out, err
     assert not h5py.File(tmp_path / "o.h5").attrs["complete"]
 
 
@@ -399,12 +399,13 @@ def test_15_check_warns_about_blobs_spawned_inside_colliders_or_each_other(tmp_p
 
 
 def test_15_a_run_that_ends_inside_out_says_so_and_records_it(tmp_path, monkeypatch):
-    real_step = run_module.step
+    real_advance = run_module.advance
 
-    def flipping_step(state, model, params):
-        real_step(state, model, params)
+    def flipping_advance(state, *args, **kwargs):
+        done = real_advance(state, *args, **kwargs)
         state.pos[:, 0] *= -1.0  # a mirror image: every ring turned inside out
-    monkeypatch.setattr(run_module, "step", flipping_step)
+        return done
+    monkeypatch.setattr(run_module, "advance", flipping_advance)
     code, out, _ = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 0 and "warning: 1 blob inside out (solo) at the end" in out
     assert h5py.File(tmp_path / "o.h5").attrs["warnings"] == "1 blob inside out (solo) at the end"

@@ -1,7 +1,7 @@
-"""Running a scene to a trajectory file: the loop around `step`.
+"""Running a scene to a trajectory file: the loop around the compiled step (pipeline.advance).
 
-The loop records frame 0 and every `every`-th step, checks for runaway positions after
-every step, and stops cleanly at a step boundary on SIGINT or SIGTERM. What a run leaves:
+The loop records frame 0 and every `every`-th step, the step checks for runaway positions
+after every step, and stops cleanly at a step boundary on SIGINT or SIGTERM. What a run leaves:
 
 - finished: `<path>` with complete = true (and `warnings` if blobs ended inside out or
   self-intersecting);
@@ -25,12 +25,14 @@ import numpy as np
 from ..scene.schema import Scene
 from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
 from ..sim.model import SimulationError, build, build_params
-from ..sim.pipeline import step
+from ..sim.pipeline import advance, settings
 from . import interrupts
 from .h5md import DiskFull, TrajectoryError, TrajectoryWriter
 from .outputs import OutputError, OutputLock, output_problem
 
 PROGRESS_SECONDS = 0.25  # the progress bar is redrawn at most this often
+CALL_SECONDS = 0.05  # wall time of one compiled call of the step at most (about): Python sees Ctrl-C,
+#                      records and the progress bar between calls
 
 
 class _WriteFailed(Exception):
@@ -126,22 +128,27 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
             from tqdm import tqdm
             bar = tqdm(total=params.steps, initial=done, unit="step", file=sys.stderr, mininterval=PROGRESS_SECONDS,
                        leave=False)
-        for n in range(done + 1, params.steps + 1):
-            if interrupts.pending() is not None:
-                break
-            step(state, model, params)
-            bad = first_runaway(state)
-            if bad >= 0:
+        step_settings = settings(model, params)
+        chunk = 1  # steps per compiled call: grown to about CALL_SECONDS of wall time
+        while done < params.steps and interrupts.pending() is None:
+            count = min(chunk, params.steps - done, params.every - done % params.every)
+            t0 = time.perf_counter()
+            ran = advance(state, model, params, count, step_settings=step_settings)
+            elapsed = time.perf_counter() - t0
+            done += ran
+            if ran < count:
+                bad = first_runaway(state.position, RUNAWAY)
                 blob = int(np.searchsorted(model.offsets, bad, side="right") - 1)
                 status = "runaway"
-                message = (f"step {n}: blob {blob} ({model.names[blob]}) vertex {bad - model.offsets[blob]} "
+                message = (f"step {done + 1}: blob {blob} ({model.names[blob]}) vertex {bad - model.offsets[blob]} "
                            f"is at {state.pos[bad].tolist()}: non-finite or beyond {RUNAWAY:g} m")
                 break
-            done = n
-            if n % params.every == 0:
-                record(n)
+            if done % params.every == 0:
+                record(done)
             if bar is not None:
-                bar.update(1)
+                bar.update(ran)
+            rate = ran / max(elapsed, 1e-9)  # steps per second
+            chunk = max(1, min(2 * chunk, params.steps, int(rate * CALL_SECONDS)))
         if status == "complete" and interrupts.pending() is not None:
             status = "interrupted"
             message = f"stopped by signal {interrupts.pending()} after step {done}"
@@ -150,6 +157,7 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
                 return result(status, f"interrupted before the first step; {path} was not written", written=False)
         warning = shape_warning(state, model) if status == "complete" else ""
     except SimulationError as e:
+        done += e.steps_done
         status, message, warning = "failed", f"step {done + 1}: {e}", ""
     except MemoryError:
         status, message, warning = "failed", f"step {done + 1}: out of memory", ""

@@ -1,4 +1,5 @@
-"""Area stages: how a blob keeps its volume. One signature, picked by name (AREA_METHODS).
+"""Area stages: how a blob keeps its volume, picked by name (AREA_METHODS); each reads its own
+model arrays, and the step (sim/pipeline.py) calls the one a scene names.
 
     kot      exact projection onto the target area (the default; below)
     xpbd     the area as one compliant XPBD constraint per blob, solved iteratively
@@ -42,39 +43,40 @@ from .ring import next_in_ring, twice_ring_area
 def _gradient_step(pos, inv_mass, o, e, scale):
     """x_i += scale w_i ∇_i A for one blob, with ∇_i from the positions before the move."""
     n = e - o
-    xl, yl = pos[e - 1, 0], pos[e - 1, 1]
-    x0, y0 = pos[o, 0], pos[o, 1]
+    xl, yl = pos[0, e - 1], pos[1, e - 1]
+    x0, y0 = pos[0, o], pos[1, o]
     for k in range(n):
         i = o + k
         if k + 1 < n:
-            xn, yn = pos[i + 1, 0], pos[i + 1, 1]
+            xn, yn = pos[0, i + 1], pos[1, i + 1]
         else:
             xn, yn = x0, y0
-        sx, sy = pos[i, 0], pos[i, 1]
-        pos[i, 0] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
-        pos[i, 1] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
+        sx, sy = pos[0, i], pos[1, i]
+        pos[0, i] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
+        pos[1, i] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
         xl, yl = sx, sy
 
 
 @stage_kernel
-def _area_kot(pos, inv_mass, offsets, target_area):
+def area_kot(pos, inv_mass, offsets, target_area):
+    """Exact area projection (see the module docstring)."""
     for blob in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[blob], offsets[blob + 1]
         n = e - o
         # Pass 1: a, b, c, carrying p_i from one edge to the next.
-        xl, yl = pos[e - 1, 0], pos[e - 1, 1]  # x_{i-1}
-        x1, y1 = pos[o + 1, 0], pos[o + 1, 1]
+        xl, yl = pos[0, e - 1], pos[1, e - 1]  # x_{i-1}
+        x1, y1 = pos[0, o + 1], pos[1, o + 1]
         px = 0.5 * inv_mass[o] * (y1 - yl)
         py = 0.5 * inv_mass[o] * (xl - x1)
         a = b = c = 0.0
         for k in range(n):
             i = o + k
-            j = o + (k + 1) % n
-            jj = o + (k + 2) % n
-            xi, yi = pos[i, 0], pos[i, 1]
-            xj, yj = pos[j, 0], pos[j, 1]
-            qx = 0.5 * inv_mass[j] * (pos[jj, 1] - yi)  # p_{i+1}
-            qy = 0.5 * inv_mass[j] * (xi - pos[jj, 0])
+            j = i + 1 if k + 1 < n else i + 1 - n  # o + (k + 1) % n, without dividing
+            jj = i + 2 if k + 2 < n else i + 2 - n
+            xi, yi = pos[0, i], pos[1, i]
+            xj, yj = pos[0, j], pos[1, j]
+            qx = 0.5 * inv_mass[j] * (pos[1, jj] - yi)  # p_{i+1}
+            qy = 0.5 * inv_mass[j] * (xi - pos[0, jj])
             a += px * qy - py * qx
             b += (xi * qy - yi * qx) + (px * yj - py * xj)
             c += xi * yj - yi * xj
@@ -90,10 +92,6 @@ def _area_kot(pos, inv_mass, offsets, target_area):
         _gradient_step(pos, inv_mass, o, e, h)
 
 
-def area_kot(state, model, params, h):
-    """Exact area projection (see the module docstring)."""
-    _area_kot[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area)
-
 
 @kernel
 def _area_and_gradient_norm(pos, inv_mass, o, e):
@@ -102,13 +100,14 @@ def _area_and_gradient_norm(pos, inv_mass, o, e):
     for i in range(o, e):
         j = next_in_ring(i, o, e)
         l = i - 1 if i > o else e - 1
-        gx, gy = 0.5 * (pos[j, 1] - pos[l, 1]), 0.5 * (pos[l, 0] - pos[j, 0])
+        gx, gy = 0.5 * (pos[1, j] - pos[1, l]), 0.5 * (pos[0, l] - pos[0, j])
         norm += inv_mass[i] * (gx * gx + gy * gy)
     return 0.5 * twice_ring_area(pos, o, e), norm
 
 
 @stage_kernel
-def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
+def area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
+    """The area as a compliant XPBD constraint, one linearized step per iteration."""
     # XPBD (Macklin et al. 2016) for C = A - A₀ with ∇_i C = ∇_i A:
     #   Δλ = (-C - α̃ λ) / (Σ w_i |∇_i A|² + α̃),  x_i += w_i ∇_i A Δλ,  α̃ = α / h².
     # One linearized step per call: the area converges over the iterations, not exactly.
@@ -124,7 +123,8 @@ def _area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
 
 
 @stage_kernel
-def _area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
+def area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
+    """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
     # Ideal gas (Matyka 2004): P = nRT / A, here P = P₀ A₀ / A. The pressure on an edge is
     # P |e| along its outward normal, half to each end; summed at vertex i that is exactly
     # P ∇_i A. Applied as a force over the substep, x_i += h² w_i f_i (here split over the
@@ -140,7 +140,8 @@ def _area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
 
 
 @kernel
-def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
+def area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
+    """No pressure: internal springs hold the shape (and can let it invert)."""
     # XPBD distance constraints, like the perimeter's, across the blob: each vertex to the
     # opposite one and to its neighbours' neighbours (Gish's and JellyCar's spring bodies).
     for s in range(pairs.shape[0]):
@@ -148,23 +149,8 @@ def _area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
         solve_distance(pos, inv_mass, i, j, rest[s], lam, s, compliance[blob_of[i]] / (h * h))
 
 
-def area_xpbd(state, model, params, h):
-    """The area as a compliant XPBD constraint, one linearized step per iteration."""
-    _area_xpbd[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.area_compliance,
-                               state.area_lam, h)
-
-
-def area_gas(state, model, params, h):
-    """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
-    _area_gas[model.parallel](state.pos, model.inv_mass, model.offsets, model.target_area, model.gas_pressure,
-                              h * h / params.iterations)
-
-
-def area_springs(state, model, params, h):
-    """No pressure: internal springs hold the shape (and can let it invert)."""
-    _area_springs(state.pos, model.inv_mass, model.blob_of, model.spring_pairs, model.spring_rest,
-                  model.spring_compliance, state.spring_lam, h)
-
-
+# The table of methods: the step calls AREA_METHODS[name] by its index (KOT, ... below), and
+# every method reads its own model arrays (see sim/pipeline.py).
 AREA_METHODS = {"kot": area_kot, "xpbd": area_xpbd, "gas": area_gas, "springs": area_springs}
 assert tuple(AREA_METHODS) == METHODS
+KOT, XPBD, GAS, SPRINGS = range(len(METHODS))

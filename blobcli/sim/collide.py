@@ -52,7 +52,6 @@ import numba
 import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
-from .model import SimulationError
 from .ring import next_in_ring, ring_contains
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
@@ -69,9 +68,9 @@ def _blob_bounds(pos, offsets, center, radius, edges):
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
         for i in range(o, e):
-            x, y = pos[i, 0], pos[i, 1]
+            x, y = pos[0, i], pos[1, i]
             j = next_in_ring(i, o, e)
-            ex, ey = pos[j, 0] - x, pos[j, 1] - y
+            ex, ey = pos[0, j] - x, pos[1, j] - y
             len2 = ex * ex + ey * ey
             # The edge table the narrow phase reads, one row per quantity so that its loop
             # over a blob's edges reads contiguous memory and vectorizes.
@@ -83,7 +82,7 @@ def _blob_bounds(pos, offsets, center, radius, edges):
         cy /= e - o
         r2 = 0.0
         for i in range(o, e):
-            r2 = max(r2, (pos[i, 0] - cx) ** 2 + (pos[i, 1] - cy) ** 2)
+            r2 = max(r2, (pos[0, i] - cx) ** 2 + (pos[1, i] - cy) ** 2)
         center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
 
 
@@ -141,17 +140,16 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
     return count
 
 
-def find_blob_pairs(state, model, params, h):
-    """Broad phase: the pairs of blobs close enough to touch this substep (state.pairs)."""
-    _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
-    max_pairs = PAIRS_PER_BLOB * model.blob_count
-    state.pairs, count = _find_pairs[model.parallel](state.center, state.radius, max_pairs)
-    if count > max_pairs:
-        raise SimulationError(f"{count:,} blob pairs overlap (at most {max_pairs:,}, {PAIRS_PER_BLOB} per blob): "
-                              "are blobs spawned on top of each other?")
-    state.partners = _partners(state.pairs, model.blob_count)
-    state.strips = _strips(state.center)
-    state.blob_contact_depth[:] = 0.0  # this substep's contacts start empty
+@stage_kernel
+def find_blob_pairs(pos, offsets, center, radius, edges, blob_contact_depth):
+    """Broad phase: the pairs of blobs close enough to touch this substep, as (pairs (P, 2), each
+    blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P). Past
+    PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant)."""
+    _blob_bounds(pos, offsets, center, radius, edges)
+    blob_count = offsets.shape[0] - 1
+    pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
+    blob_contact_depth[:] = 0.0  # this substep's contacts start empty
+    return pairs, _partners(pairs, blob_count), _strips(center), count
 
 
 @inline_kernel
@@ -170,17 +168,17 @@ def _separate_deep(pos, inv_mass, offsets, a, b, center, radius):
         for i in range(offsets[blob], offsets[blob + 1]):
             m = 1.0 / inv_mass[i]
             m_sum += m
-            d = ((pos[i, 0] - sx) * ux + (pos[i, 1] - sy) * uy) * side  # > 0: beyond the line
+            d = ((pos[0, i] - sx) * ux + (pos[1, i] - sy) * uy) * side  # > 0: beyond the line
             if d > 0.0:
-                pos[i, 0] -= d * side * ux
-                pos[i, 1] -= d * side * uy
+                pos[0, i] -= d * side * ux
+                pos[1, i] -= d * side * uy
                 px -= m * d * side * ux
                 py -= m * d * side * uy
     # One common shift of both blobs removes the momentum the pushes added.
     for blob in (a, b):
         for i in range(offsets[blob], offsets[blob + 1]):
-            pos[i, 0] -= px / m_sum
-            pos[i, 1] -= py / m_sum
+            pos[0, i] -= px / m_sum
+            pos[1, i] -= py / m_sum
 
 
 @kernel
@@ -279,14 +277,14 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
             ax, ay, ex, ey, inv_len2 = (edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb],
                                         edges[4, ob:eb])
             for i in range(oa, ea):
-                x, y = pos[i, 0], pos[i, 1]
+                x, y = pos[0, i], pos[1, i]
                 if (x - cx) ** 2 + (y - cy) ** 2 > r2:  # outside B's bounding circle
                     continue
                 # p's outward normal, from its neighbours (sign from A's winding).
                 ip = i - 1 if i > oa else ea - 1
                 inx = i + 1 if i + 1 < ea else oa
-                vnx = orient[A] * (pos[inx, 1] - pos[ip, 1])
-                vny = -orient[A] * (pos[inx, 0] - pos[ip, 0])
+                vnx = orient[A] * (pos[1, inx] - pos[1, ip])
+                vny = -orient[A] * (pos[0, inx] - pos[0, ip])
                 # Pass 1, over B's edges with no branches (it vectorizes): crossing parity,
                 # each edge's nearest point and whether its normal opposes p's.
                 crossings = 0
@@ -336,7 +334,7 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_
     against 0.14 mm over seconds 6-10). The strips are set by the scene (see _strips), so the
     result is the same for any number of threads."""
     strips = strip_start.shape[0] - 1
-    for p in range(pos.shape[0]):
+    for p in range(pos.shape[1]):
         if c_edge[p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[p]]]) >= 2:
             _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
                              contact_depth, center, radius, up_x, up_y)
@@ -383,20 +381,20 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material,
     elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
         wp *= (we / wp) ** min(-2.0 * f, 2.0)
     e1 = e0 + 1 if e0 + 1 < offsets[blob + 1] else offsets[blob]
-    ex, ey = pos[e1, 0] - pos[e0, 0], pos[e1, 1] - pos[e0, 1]
+    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
     length = math.sqrt(ex * ex + ey * ey)
     if length == 0.0:
         return
     nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
-    qx, qy = pos[e0, 0] + t * ex, pos[e0, 1] + t * ey
-    C = (pos[p, 0] - qx) * nx + (pos[p, 1] - qy) * ny
+    qx, qy = pos[0, e0] + t * ex, pos[1, e0] + t * ey
+    C = (pos[0, p] - qx) * nx + (pos[1, p] - qy) * ny
     if C >= 0.0:
         return
     if t == 0.0 or t == 1.0:
         # Nearest point is a corner, equally near to both its edges: push toward it,
         # along q - p. (Along the normal of whichever edge came first, every push was
         # turned the same way round the ring, and stacked blobs slid off each other.)
-        dx, dy = qx - pos[p, 0], qy - pos[p, 1]
+        dx, dy = qx - pos[0, p], qy - pos[1, p]
         dist = math.sqrt(dx * dx + dy * dy)
         if dist == 0.0:
             return
@@ -408,8 +406,8 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material,
     # push changes r by -C n only, so r's tangential part t_r can be read before it, and
     # push and friction go in one move: Δ = (-C n - cut t_r) / W (one dependent chain of
     # square roots and divisions per contact instead of two: this loop is sequential).
-    rx = (pos[p, 0] - prev[p, 0]) - (1.0 - t) * (pos[e0, 0] - prev[e0, 0]) - t * (pos[e1, 0] - prev[e1, 0])
-    ry = (pos[p, 1] - prev[p, 1]) - (1.0 - t) * (pos[e0, 1] - prev[e0, 1]) - t * (pos[e1, 1] - prev[e1, 1])
+    rx = (pos[0, p] - prev[0, p]) - (1.0 - t) * (pos[0, e0] - prev[0, e0]) - t * (pos[0, e1] - prev[0, e1])
+    ry = (pos[1, p] - prev[1, p]) - (1.0 - t) * (pos[1, e0] - prev[1, e0]) - t * (pos[1, e1] - prev[1, e1])
     rn = rx * nx + ry * ny
     tx, ty = rx - rn * nx, ry - rn * ny
     slip = math.sqrt(tx * tx + ty * ty)
@@ -425,30 +423,31 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material,
 @inline_kernel
 def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
     """Move p by wp d and the edge ends by -w d: the relative motion changes by W d, momentum by 0."""
-    pos[p, 0] += wp * dx
-    pos[p, 1] += wp * dy
-    pos[e0, 0] -= w0 * dx
-    pos[e0, 1] -= w0 * dy
-    pos[e1, 0] -= w1 * dx
-    pos[e1, 1] -= w1 * dy
+    pos[0, p] += wp * dx
+    pos[1, p] += wp * dy
+    pos[0, e0] -= w0 * dx
+    pos[1, e0] -= w0 * dy
+    pos[0, e1] -= w1 * dx
+    pos[1, e1] -= w1 * dy
 
 
-def detect_blob_contacts(state, model, params, h):
-    """Narrow phase: each vertex's contact (state.c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds[model.parallel](state.pos, model.offsets, state.center, state.radius, state.edges)
-    deep = np.empty(len(state.pairs), dtype=np.bool_)
-    _deep_pairs[model.parallel](state.pos, model.offsets, state.pairs, state.center, state.radius, deep)
-    for k in np.flatnonzero(deep):  # rare: separate them first, in pair order
-        _separate_deep(state.pos, model.inv_mass, model.offsets, state.pairs[k, 0], state.pairs[k, 1],
-                       state.center, state.radius)
-    _detect[model.parallel](state.pos, model.offsets, model.orient, state.center, state.radius, state.edges,
-                            *state.partners, deep, state.c_edge, state.c_t, state.c_depth2)
+@stage_kernel
+def detect_blob_contacts(pos, inv_mass, offsets, orient, center, radius, edges, pairs, partners, c_edge, c_t,
+                         c_depth2):
+    """Narrow phase: each vertex's contact (c_edge, c_t), after splitting deep pairs."""
+    _blob_bounds(pos, offsets, center, radius, edges)
+    deep = np.empty(pairs.shape[0], dtype=np.bool_)
+    _deep_pairs(pos, offsets, pairs, center, radius, deep)
+    for k in range(pairs.shape[0]):  # rare: separate them first, in pair order
+        if deep[k]:
+            _separate_deep(pos, inv_mass, offsets, pairs[k, 0], pairs[k, 1], center, radius)
+    _detect(pos, offsets, orient, center, radius, edges, partners[0], partners[1], partners[2], deep, c_edge, c_t,
+            c_depth2)
 
 
-def resolve_blob_contacts(state, model, params, h):
+@stage_kernel
+def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth,
+                          center, radius, up_x, up_y, strips):
     """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
-    g = np.hypot(*params.gravity)
-    up = -params.gravity / g if g > 0 else np.zeros(2)
-    _resolve[model.parallel](state.pos, state.prev, model.inv_mass, model.offsets, model.blob_of, model.orient,
-                             model.material, state.c_edge, state.c_t, state.blob_contact_depth, state.center,
-                             state.radius, up[0], up[1], *state.strips)
+    _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth, center, radius,
+             up_x, up_y, strips[0], strips[1], strips[2])

@@ -15,7 +15,7 @@ def _blob_measures(pos, vel, inv_mass, offsets, area, kinetic):
         o, e = offsets[b], offsets[b + 1]
         ke = 0.0
         for i in range(o, e):
-            ke += (vel[i, 0] ** 2 + vel[i, 1] ** 2) / inv_mass[i]
+            ke += (vel[0, i] ** 2 + vel[1, i] ** 2) / inv_mass[i]
         area[b] = 0.5 * twice_ring_area(pos, o, e)
         kinetic[b] = 0.5 * ke
 
@@ -24,23 +24,21 @@ def blob_measures(state: State, model: Model) -> tuple[np.ndarray, np.ndarray]:
     """(signed area (B,) m², kinetic energy (B,) J) of every blob."""
     area = np.empty(model.blob_count)
     kinetic = np.empty(model.blob_count)
-    _blob_measures(state.pos, state.vel, model.inv_mass, model.offsets, area, kinetic)
+    _blob_measures(state.position, state.velocity, model.inv_mass, model.offsets, area, kinetic)
     return area, kinetic
 
 
 @kernel
-def _first_runaway(pos, limit):
-    for i in range(pos.shape[0]):
-        for k in range(2):
-            v = pos[i, k]
-            if not (abs(v) <= limit):  # also catches NaN
+def first_runaway(pos, limit):
+    """Index of the first vertex of pos (2, N) that is non-finite or beyond `limit`, or -1."""
+    bad = False
+    for i in range(pos.shape[1]):  # a loop with no exit, so that it vectorizes: it runs every step
+        bad |= not (abs(pos[0, i]) <= limit) or not (abs(pos[1, i]) <= limit)  # also catches NaN
+    if bad:
+        for i in range(pos.shape[1]):
+            if not (abs(pos[0, i]) <= limit) or not (abs(pos[1, i]) <= limit):
                 return i
     return -1
-
-
-def first_runaway(state: State) -> int:
-    """Index of the first vertex that is non-finite or beyond RUNAWAY, or -1."""
-    return _first_runaway(state.pos, RUNAWAY)
 
 
 SELF_CROSSING_MAX_VERTICES = 4096  # larger rings are not checked for self-crossing (O(n²) per ring)
@@ -70,10 +68,10 @@ def _shape_faults(pos, offsets, orient, faults):
                 j1 = next_in_ring(j, o, e)
                 if j1 == i:
                     continue
-                if (_orient(pos[i, 0], pos[i, 1], pos[i1, 0], pos[i1, 1], pos[j, 0], pos[j, 1])
-                        * _orient(pos[i, 0], pos[i, 1], pos[i1, 0], pos[i1, 1], pos[j1, 0], pos[j1, 1]) < 0
-                        and _orient(pos[j, 0], pos[j, 1], pos[j1, 0], pos[j1, 1], pos[i, 0], pos[i, 1])
-                        * _orient(pos[j, 0], pos[j, 1], pos[j1, 0], pos[j1, 1], pos[i1, 0], pos[i1, 1]) < 0):
+                if (_orient(pos[0, i], pos[1, i], pos[0, i1], pos[1, i1], pos[0, j], pos[1, j])
+                        * _orient(pos[0, i], pos[1, i], pos[0, i1], pos[1, i1], pos[0, j1], pos[1, j1]) < 0
+                        and _orient(pos[0, j], pos[1, j], pos[0, j1], pos[1, j1], pos[0, i], pos[1, i])
+                        * _orient(pos[0, j], pos[1, j], pos[0, j1], pos[1, j1], pos[0, i1], pos[1, i1]) < 0):
                     faults[b] = 2
                     break
             if faults[b]:
@@ -83,7 +81,7 @@ def _shape_faults(pos, offsets, orient, faults):
 def shape_warning(state: State, model: Model) -> str:
     """One sentence on blobs that are inside out or self-intersecting now, or ""."""
     faults = np.zeros(model.blob_count, dtype=np.int64)
-    _shape_faults(state.pos, model.offsets, model.orient, faults)
+    _shape_faults(state.position, model.offsets, model.orient, faults)
     parts = []
     for code, what in ((1, "inside out"), (2, "self-intersecting")):
         blobs = np.flatnonzero(faults == code)

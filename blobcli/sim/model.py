@@ -8,6 +8,8 @@ its ring. Only `State` changes during a step; `Model` and `Params` are read-only
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,7 +21,12 @@ PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every 
 
 
 class SimulationError(Exception):
-    """A step that cannot go on (e.g. far more overlapping blob pairs than memory can hold)."""
+    """A step that cannot go on (e.g. far more overlapping blob pairs than memory can hold), after
+    `steps_done` whole steps of the call that raised it."""
+
+    def __init__(self, message: str, steps_done: int = 0):
+        super().__init__(message)
+        self.steps_done = steps_done
 
 
 @dataclass(frozen=True)
@@ -48,6 +55,28 @@ class StaticSet:
     aabb: np.ndarray  # (shapes, 4): xmin, ymin, xmax, ymax
 
 
+class ModelArrays(NamedTuple):
+    """The numeric arrays of a Model (same names, same meaning), for the compiled step; each static
+    solver kind as (geom, shape_offsets, material, aabb) of its StaticSet, empty when absent."""
+    offsets: np.ndarray
+    blob_of: np.ndarray
+    inv_mass: np.ndarray
+    rest_length: np.ndarray
+    target_area: np.ndarray
+    compliance: np.ndarray
+    material: np.ndarray
+    orient: np.ndarray
+    area_compliance: np.ndarray
+    gas_pressure: np.ndarray
+    spring_pairs: np.ndarray
+    spring_rest: np.ndarray
+    spring_compliance: np.ndarray
+    planes: tuple
+    segments: tuple
+    circles: tuple
+    polygons: tuple
+
+
 @dataclass(frozen=True)
 class Model:
     """Arrays computed once per scene; never written during a step."""
@@ -71,6 +100,16 @@ class Model:
     spring_rest: np.ndarray  # (S,) m, ... their rest lengths
     spring_compliance: np.ndarray  # (B,) m/N, ... and compliance, 1 / stiffness
 
+    @cached_property
+    def arrays(self) -> ModelArrays:
+        """The model as the step's kernels read it."""
+        kinds = {s.kind: (s.geom, s.shape_offsets, s.material, s.aabb) for s in self.statics}
+        none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+        return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.target_area,
+                           self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
+                           self.spring_pairs, self.spring_rest, self.spring_compliance,
+                           *(kinds.get(kind, none) for kind in SOLVERS))
+
     @property
     def collides(self) -> bool:
         """Blob–blob collision stages run only with more than one blob."""
@@ -90,20 +129,21 @@ class Model:
         return int(self.offsets[-1])
 
 
-@dataclass
-class State:
-    """What changes during a step. pos and vel are the state proper (with impact_speed, what
-    /restart stores); the rest is scratch rewritten every substep, kept here so that the
-    per-vertex arrays are allocated once. The blob–blob broad phase still allocates its pair
-    lists (pairs, partners, strips) every substep, because their length changes."""
-    pos: np.ndarray  # (N, 2) m
-    vel: np.ndarray  # (N, 2) m/s
-    prev: np.ndarray  # (N, 2) m, positions at the start of the substep
-    lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
-    contact_normal: np.ndarray  # (N, 2) unit normal of the vertex's static contact
-    contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
-    contact_material: np.ndarray  # (N, 3) combined μ_s, μ_k, e of that contact
+class State(NamedTuple):
+    """What changes during a step, as the kernels read it: per-vertex vectors in structure-of-arrays
+    layout, (2, N) with row 0 x and row 1 y, so that a loop over vertices reads contiguous memory
+    (`pos` and `vel` are the (N, 2) views the rest of the program uses). position, velocity and
+    impact_speed are the state proper (what /restart stores); the rest is scratch rewritten every
+    substep, kept here so that the per-vertex arrays are allocated once. The blob–blob pair lists
+    change length every substep and live inside the step (sim/pipeline.py)."""
+    position: np.ndarray  # (2, N) m
+    velocity: np.ndarray  # (2, N) m/s
     impact_speed: np.ndarray  # (B,) m/s, fastest approach of the blob's ongoing impact on statics
+    previous: np.ndarray  # (2, N) m, positions at the start of the substep
+    lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
+    contact_normal: np.ndarray  # (2, N) unit normal of the vertex's static contact
+    contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
+    contact_material: np.ndarray  # (3, N) combined μ_s, μ_k, e of that contact
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
     # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
@@ -111,13 +151,20 @@ class State:
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
     edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m),
     #                    1/|edge|² (1/m²)
-    pairs: np.ndarray  # (P, 2) int64, candidate pairs a < b
-    partners: tuple  # each blob's partners, CSR: (start (B+1,), partner (2P,), pair index (2P,))
-    strips: tuple  # blobs by vertical strip, for the parallel resolution: (strip_of (B,), start (S+1,), blobs (B,))
     c_edge: np.ndarray  # (N,) int64, vertex i's contact: the edge (by its first vertex) it must leave, or -1 ...
     c_t: np.ndarray  # (N,) ... the barycentric position on it ...
     c_depth2: np.ndarray  # (N,) m², ... and the squared depth (the deepest contact wins)
     blob_contact_depth: np.ndarray  # (N,) m, a vertex's total push-out by blobs this substep
+
+    @property
+    def pos(self) -> np.ndarray:
+        """(N, 2) m: the positions, vertex by vertex (a view: writing it writes the state)."""
+        return self.position.T
+
+    @property
+    def vel(self) -> np.ndarray:
+        """(N, 2) m/s: the velocities, vertex by vertex (a view)."""
+        return self.velocity.T
 
 
 def blob_points(b: BlobDef) -> np.ndarray:
@@ -184,14 +231,14 @@ def build(scene: Scene) -> tuple[Model, State]:
                   orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
                   spring_compliance=1.0 / spring_stiffness)
-    n = len(pos)
-    state = State(pos=pos, vel=vel, prev=pos.copy(), lam=np.zeros(n),
-                  contact_normal=np.zeros((n, 2)), contact_depth=np.zeros(n),
-                  contact_material=np.zeros((n, 3)), impact_speed=np.zeros(len(counts)),
-                  area_lam=np.zeros(len(counts)), spring_lam=np.zeros(len(model.spring_pairs)),
-                  center=np.zeros((len(counts), 2)), radius=np.zeros(len(counts)), edges=np.zeros((5, n)),
-                  pairs=np.zeros((0, 2), dtype=np.int64), partners=(), strips=(), c_edge=np.zeros(n, dtype=np.int64),
-                  c_t=np.zeros(n), c_depth2=np.zeros(n), blob_contact_depth=np.zeros(n))
+    n, blobs = len(pos), len(counts)
+    state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
+                  impact_speed=np.zeros(blobs), previous=np.ascontiguousarray(pos.T), lam=np.zeros(n),
+                  contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
+                  area_lam=np.zeros(blobs), spring_lam=np.zeros(len(model.spring_pairs)),
+                  center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
+                  c_edge=np.zeros(n, dtype=np.int64), c_t=np.zeros(n), c_depth2=np.zeros(n),
+                  blob_contact_depth=np.zeros(n))
     return model, state
 
 

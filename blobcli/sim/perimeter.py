@@ -18,7 +18,7 @@ from .ring import next_in_ring
 @inline_kernel
 def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
     """One XPBD step of C = |x_j - x_i| - rest, with multiplier lam[k] (see above)."""
-    dx, dy = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]
+    dx, dy = pos[0, j] - pos[0, i], pos[1, j] - pos[1, i]
     length = math.sqrt(dx * dx + dy * dy)
     if length == 0.0:
         return
@@ -26,14 +26,14 @@ def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
     dlam = (-C - alpha * lam[k]) / (inv_mass[i] + inv_mass[j] + alpha)
     lam[k] += dlam
     nx, ny = dx / length, dy / length
-    pos[i, 0] -= inv_mass[i] * dlam * nx
-    pos[i, 1] -= inv_mass[i] * dlam * ny
-    pos[j, 0] += inv_mass[j] * dlam * nx
-    pos[j, 1] += inv_mass[j] * dlam * ny
+    pos[0, i] -= inv_mass[i] * dlam * nx
+    pos[1, i] -= inv_mass[i] * dlam * ny
+    pos[0, j] += inv_mass[j] * dlam * nx
+    pos[1, j] += inv_mass[j] * dlam * ny
 
 
 @stage_kernel
-def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
+def solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
     # Red-black order: even edges, then odd edges, then (odd rings only) the closing edge.
     # Within a colour no two edges share a vertex, so the order inside it does not matter
     # and no direction around the ring is favoured. A plain sweep i = 0..n-1 is biased:
@@ -53,7 +53,3 @@ def _solve_perimeter(pos, inv_mass, offsets, rest_length, compliance, lam, h):
         if n % 2 == 1:
             solve_distance(pos, inv_mass, e - 1, o, rest_length[e - 1], lam, e - 1, alpha)
 
-
-def solve_perimeter(state, model, params, h):
-    _solve_perimeter[model.parallel](state.pos, model.inv_mass, model.offsets, model.rest_length, model.compliance,
-                                     state.lam, h)

@@ -1,62 +1,183 @@
-"""One step of the simulation, as a list of named stages.
+"""The step of the simulation: a list of named stages, compiled whole.
 
-Each stage is a plain function (state, model, params, h) over flat arrays, with its
-per-vertex work in a numba kernel. Stages never call each other; only `step` does, and
-a stage a scene does not need (damping off, no statics, one blob) is not run at all.
+Each stage is a kernel over flat arrays (model.State: structure of arrays). `_advance` calls
+them in order, for as many steps as it is asked, in one compiled call: Python is entered only
+between calls (to record a frame, update the progress bar, see a Ctrl-C), never per substep.
+A stage a scene does not need (damping off, one blob, no statics, nothing that bounces) is
+not run: StepSettings says which, decided from the model when the call is made.
+
+The step is compiled twice from this one text (jit.stage_kernel): serial, and with every
+stage's parallel build, which scenes of 32 blobs or more run. Both give the same bits.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from typing import Callable
+from typing import NamedTuple
 
-from .area import AREA_METHODS
-from .collide import detect_blob_contacts, find_blob_pairs, resolve_blob_contacts
-from .integrate import damp_relative, predict, restitution, update_velocities
-from .model import Model, Params, State
+import numba
+import numpy as np
+
+from ..jit import build, inline_kernel, stage_kernel
+from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
+from .collide import PAIRS_PER_BLOB, detect_blob_contacts, find_blob_pairs, resolve_blob_contacts
+from .integrate import REST_SPEED_FACTOR, damp_relative, predict, restitution, update_velocities
+from .measure import RUNAWAY, first_runaway
+from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .statics import collide_statics
 
-Stage = Callable[[State, Model, Params, float], None]  # every stage: (state, model, params, h) -> None
-
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution")
+DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION = \
+    range(len(STAGES))
+DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
+
+
+class StepSettings(NamedTuple):
+    """Params and the model's flags, as the compiled step reads them."""
+    dt: float  # s
+    substeps: int
+    iterations: int
+    gx: float  # m/s²
+    gy: float
+    damping: float  # 1/s
+    method: int  # index into area.METHODS
+    up_x: float  # -g / |g| (0 without gravity): "above", for the stacking rule of sim/collide.py
+    up_y: float
+    rest_speed: float  # m/s: slower impacts on statics never bounce (integrate.restitution)
+    collides: bool  # blob–blob stages: more than one blob
+    statics: bool  # static collider stage: any static collider
+    bounces: bool  # restitution stage: statics present and some restitution > 0
+
+
+@stage_kernel
+def _advance(steps, state, model, settings, clock):
+    """Run `steps` steps. Returns (steps done, why it stopped, detail): DONE; RUNAWAY_VERTEX after a step
+    that left vertex `detail` non-finite or beyond RUNAWAY (that step not counted); TOO_MANY_PAIRS, when
+    `detail` blob pairs overlap (the state is then mid-step). With a clock (one slot per stage), each
+    stage's wall time is added to its slot, in seconds."""
+    s, m, c = state, model, settings
+    h = c.dt / c.substeps
+    damping = math.exp(-c.damping * h)
+    blob_count = m.offsets.shape[0] - 1
+    no_pairs = np.zeros((0, 2), np.int64)
+    pairs, partners, strips = no_pairs, (np.zeros(blob_count + 1, np.int64), no_pairs[:, 0], no_pairs[:, 0]), \
+        (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count))
+    t = _lap(clock, -1, 0.0)
+    for n in range(steps):
+        for _ in range(c.substeps):
+            if c.damping > 0.0:
+                damp_relative(s.velocity, m.inv_mass, m.offsets, damping)  # (v - v_cm) *= exp(-damping h)
+                t = _lap(clock, DAMPING, t)
+            # x_prev <- x, v += g h, x += v h; this substep's multipliers and contacts start at 0
+            predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, c.gx, c.gy, h)
+            s.area_lam[:] = 0.0
+            s.spring_lam[:] = 0.0
+            t = _lap(clock, PREDICT, t)
+            if c.collides:  # uniform grid of blob centres
+                pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.center, s.radius, s.edges,
+                                                                 s.blob_contact_depth)
+                if count > PAIRS_PER_BLOB * blob_count:
+                    return n, TOO_MANY_PAIRS, count
+                t = _lap(clock, BROAD_PHASE, t)
+            for _ in range(c.iterations):
+                solve_perimeter(s.position, m.inv_mass, m.offsets, m.rest_length, m.compliance, s.lam, h)  # XPBD
+                t = _lap(clock, PERIMETER, t)
+                # area.AREA_METHODS, by index; kot: exact, a h² + b h + c = 0
+                if c.method == KOT:
+                    area_kot(s.position, m.inv_mass, m.offsets, m.target_area)
+                elif c.method == XPBD:
+                    area_xpbd(s.position, m.inv_mass, m.offsets, m.target_area, m.area_compliance, s.area_lam, h)
+                elif c.method == GAS:
+                    area_gas(s.position, m.inv_mass, m.offsets, m.target_area, m.gas_pressure, h * h / c.iterations)
+                elif c.method == SPRINGS:
+                    area_springs(s.position, m.inv_mass, m.blob_of, m.spring_pairs, m.spring_rest,
+                                 m.spring_compliance, s.spring_lam, h)
+                t = _lap(clock, AREA, t)
+                if pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
+                    detect_blob_contacts(s.position, m.inv_mass, m.offsets, m.orient, s.center, s.radius, s.edges,
+                                         pairs, partners, s.c_edge, s.c_t, s.c_depth2)
+                    t = _lap(clock, BLOB_DETECT, t)
+                    resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, m.orient,
+                                          m.material, s.c_edge, s.c_t, s.blob_contact_depth, s.center, s.radius,
+                                          c.up_x, c.up_y, strips)
+                    t = _lap(clock, BLOB_RESOLVE, t)
+                if c.statics:  # one kernel per collider kind
+                    collide_statics(s.position, s.previous, m.blob_of, m.material, m.planes, m.segments, m.circles,
+                                    m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
+                    t = _lap(clock, STATICS, t)
+            # v = (x - x_prev) / h, kinetic friction at static contacts
+            update_velocities(s.position, s.previous, s.velocity, s.contact_normal, s.contact_depth,
+                              s.contact_material, h)
+            t = _lap(clock, VELOCITIES, t)
+            if c.bounces:  # leave statics at e × approach speed
+                restitution(s.velocity, m.inv_mass, m.offsets, s.contact_normal, s.contact_depth, s.contact_material,
+                            s.impact_speed, c.rest_speed)
+                t = _lap(clock, RESTITUTION, t)
+        bad = first_runaway(s.position, RUNAWAY)
+        if bad >= 0:
+            return n, RUNAWAY_VERTEX, bad
+    return steps, DONE, 0
+
+
+@inline_kernel
+def _lap(clock, stage, t):
+    """With a clock (non-empty), add the time since t to clock[stage] and return the time now."""
+    if clock.shape[0] == 0:
+        return t
+    now = _now()
+    if stage >= 0:
+        clock[stage] += now - t
+    return now
+
+
+@numba.njit(cache=True)
+def _now():
+    with numba.objmode(now="float64"):
+        now = time.perf_counter()
+    return now
+
+
+def settings(model: Model, params: Params) -> StepSettings:
+    """What the compiled step needs of params and the model."""
+    g = math.hypot(params.gravity[0], params.gravity[1])
+    up = -params.gravity / g if g > 0 else np.zeros(2)
+    h = params.dt / params.substeps
+    return StepSettings(dt=params.dt, substeps=params.substeps, iterations=params.iterations,
+                        gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
+                        method=METHODS.index(params.method), up_x=float(up[0]), up_y=float(up[1]),
+                        rest_speed=REST_SPEED_FACTOR * g * h, collides=model.collides, statics=bool(model.statics),
+                        bounces=model.bounces)
+
+
+NO_CLOCK = np.zeros(0)
+
+
+def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
+            step_settings: StepSettings | None = None) -> int:
+    """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps), in one
+    compiled call. Returns the steps done: fewer than asked only when a step left a vertex non-finite
+    or beyond RUNAWAY (measure.first_runaway finds it). Raises SimulationError when far more blob
+    pairs overlap than memory can hold.
+
+    With `clock` (a dict), each stage's wall time is added to clock[stage name], in seconds:
+    `blobsim bench` profiles the real step this way. `step_settings` (from `settings`) saves
+    rebuilding them on every call."""
+    timer = np.zeros(len(STAGES)) if clock is not None else NO_CLOCK
+    done, why, detail = build(_advance, model.parallel)(steps, state, model.arrays,
+                                                        step_settings or settings(model, params), timer)
+    if clock is not None:
+        for name, seconds in zip(STAGES, timer):
+            clock[name] = clock.get(name, 0.0) + float(seconds)
+    if why == TOO_MANY_PAIRS:
+        most = PAIRS_PER_BLOB * model.blob_count
+        raise SimulationError(f"{detail:,} blob pairs overlap (at most {most:,}, {PAIRS_PER_BLOB} per blob): "
+                              "are blobs spawned on top of each other?", steps_done=done)
+    return done
 
 
 def step(state: State, model: Model, params: Params, clock: dict | None = None) -> None:
-    """Advance the state by params.dt, in `substeps` substeps of h = dt / substeps.
-
-    With `clock` (a dict), each stage's wall time is added to clock[stage name], in seconds:
-    `blobsim bench` profiles the real step this way."""
-    run = _run if clock is None else _timed(clock)
-    h = params.dt / params.substeps
-    solve_area = AREA_METHODS[params.method]
-    for _ in range(params.substeps):
-        if params.damping > 0.0:
-            run("damping", damp_relative, state, model, params, h)      # (v - v_cm) *= exp(-damping h)
-        run("predict", predict, state, model, params, h)                # x_prev <- x, v += g h, x += v h
-        if model.collides:
-            run("broad phase", find_blob_pairs, state, model, params, h)  # uniform grid of blob centres
-        for _ in range(params.iterations):
-            run("perimeter", solve_perimeter, state, model, params, h)  # XPBD edge lengths
-            run("area", solve_area, state, model, params, h)            # kot: exact, a h² + b h + c = 0
-            if model.collides:
-                run("blob detect", detect_blob_contacts, state, model, params, h)    # vertex in another blob
-                run("blob resolve", resolve_blob_contacts, state, model, params, h)  # push out, friction
-            if model.statics:
-                run("statics", collide_statics, state, model, params, h)  # one kernel per collider kind
-        run("velocities", update_velocities, state, model, params, h)   # v = (x - x_prev) / h, friction
-        if model.bounces:
-            run("restitution", restitution, state, model, params, h)    # leave statics at e × approach speed
-
-
-def _run(name: str, stage: Stage, *args) -> None:
-    stage(*args)
-
-
-def _timed(clock: dict):
-    def run(name, stage, *args):
-        t0 = time.perf_counter()
-        stage(*args)
-        clock[name] = clock.get(name, 0.0) + time.perf_counter() - t0
-    return run
+    """Advance the state by one step (see `advance`)."""
+    advance(state, model, params, 1, clock)

@@ -19,7 +19,7 @@ def twice_ring_area(pos, o, e):
     twice_area = 0.0
     for i in range(o, e):
         j = next_in_ring(i, o, e)
-        twice_area += pos[i, 0] * pos[j, 1] - pos[j, 0] * pos[i, 1]
+        twice_area += pos[0, i] * pos[1, j] - pos[0, j] * pos[1, i]
     return twice_area
 
 
@@ -36,7 +36,7 @@ def ring_contains(pos, o, e, x, y):
     inside = False
     j = e - 1
     for i in range(o, e):
-        if crosses_ray(pos[j, 0], pos[j, 1], pos[i, 0], pos[i, 1], x, y):
+        if crosses_ray(pos[0, j], pos[1, j], pos[0, i], pos[1, i], x, y):
             inside = not inside
         j = i
     return inside

@@ -18,6 +18,7 @@ import math
 
 import numba
 
+from ..colliders import SOLVERS
 from ..jit import inline_kernel, stage_kernel
 from .ring import crosses_ray
 
@@ -26,12 +27,12 @@ SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their
 
 @inline_kernel
 def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, contact_depth, contact_material):
-    contact_normal[i, 0] = nx
-    contact_normal[i, 1] = ny
+    contact_normal[0, i] = nx
+    contact_normal[1, i] = ny
     contact_depth[i] += depth
-    contact_material[i, 0] = math.sqrt(blob_material[0] * shape_material[0])
-    contact_material[i, 1] = math.sqrt(blob_material[1] * shape_material[1])
-    contact_material[i, 2] = max(blob_material[2], shape_material[2])
+    contact_material[0, i] = math.sqrt(blob_material[0] * shape_material[0])
+    contact_material[1, i] = math.sqrt(blob_material[1] * shape_material[1])
+    contact_material[2, i] = max(blob_material[2], shape_material[2])
 
 
 @inline_kernel
@@ -39,11 +40,11 @@ def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material):
     """Where static friction holds the vertex: its slip along the surface this substep undone,
     if |Δx_t| <= μ_s D (Coulomb, at position level: Müller et al. 2020), D being how far the
     surfaces pushed it out this substep. Returns (x, y) unchanged when it slides."""
-    nx, ny = contact_normal[i, 0], contact_normal[i, 1]
-    dx, dy = x - prev[i, 0], y - prev[i, 1]
+    nx, ny = contact_normal[0, i], contact_normal[1, i]
+    dx, dy = x - prev[0, i], y - prev[1, i]
     dn = dx * nx + dy * ny
     tx, ty = dx - dn * nx, dy - dn * ny
-    if tx * tx + ty * ty <= (contact_material[i, 0] * contact_depth[i]) ** 2:
+    if tx * tx + ty * ty <= (contact_material[0, i] * contact_depth[i]) ** 2:
         return x - tx, y - ty
     return x, y
 
@@ -71,15 +72,15 @@ def _inside_shape(geom, start, stop, x, y):
 def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                    contact_normal, contact_depth, contact_material):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
-    for i in numba.prange(pos.shape[0]):
+    for i in numba.prange(pos.shape[1]):
         for s in range(geom.shape[0]):
             px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
-            d = (pos[i, 0] - px) * nx + (pos[i, 1] - py) * ny
+            d = (pos[0, i] - px) * nx + (pos[1, i] - py) * ny
             if d < 0.0:
                 _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
                 # on the plane, and held there by static friction (it stays on a flat plane)
-                pos[i, 0], pos[i, 1] = _stuck(i, pos[i, 0] - d * nx, pos[i, 1] - d * ny, prev, contact_normal,
+                pos[0, i], pos[1, i] = _stuck(i, pos[0, i] - d * nx, pos[1, i] - d * ny, prev, contact_normal,
                                               contact_depth, contact_material)
 
 
@@ -89,8 +90,8 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
-    for i in numba.prange(pos.shape[0]):
-        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+    for i in numba.prange(pos.shape[1]):
+        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] - SKIN or min(x, x0) > aabb[s, 2] + SKIN
                     or max(y, y0) < aabb[s, 1] - SKIN or min(y, y0) > aabb[s, 3] + SKIN):
@@ -120,14 +121,14 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
                     contact_normal, contact_depth, contact_material)
             x, y = _stuck(i, x + depth * side * nx, y + depth * side * ny, prev, contact_normal, contact_depth,
                           contact_material)
-        pos[i, 0], pos[i, 1] = x, y
+        pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
 def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                     contact_normal, contact_depth, contact_material):
-    for i in numba.prange(pos.shape[0]):
-        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+    for i in numba.prange(pos.shape[1]):
+        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
                     or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
@@ -164,15 +165,15 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
                 _record(i, nx, ny, r - dist, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
                 x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material)
-        pos[i, 0], pos[i, 1] = x, y
+        pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
 def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
-    for i in numba.prange(pos.shape[0]):
-        x, y, x0, y0 = pos[i, 0], pos[i, 1], prev[i, 0], prev[i, 1]
+    for i in numba.prange(pos.shape[1]):
+        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(shape_offsets.shape[0] - 1):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
                     or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
@@ -228,20 +229,30 @@ def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
                 sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material)
                 if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
                     x, y = sx, sy
-        pos[i, 0], pos[i, 1] = x, y
+        pos[0, i], pos[1, i] = x, y
 
 
-SOLVER_KERNELS = {  # by the `solver` name of blobcli/colliders.py
+SOLVER_KERNELS = {  # by the `solver` name of blobcli/colliders.py, in the order they run
     "plane": _collide_plane,
     "segment": _collide_segment,
     "circle": _collide_circle,
     "polygon": _collide_polygon,
 }
+assert tuple(SOLVER_KERNELS) == SOLVERS
 
 
-def collide_statics(state, model, params, h):
-    """Push vertices out of every static collider: one kernel per solver kind present."""
-    for statics in model.statics:
-        SOLVER_KERNELS[statics.kind][model.parallel](
-            state.pos, state.prev, model.blob_of, model.material, statics.geom, statics.shape_offsets,
-            statics.material, statics.aabb, state.contact_normal, state.contact_depth, state.contact_material)
+@stage_kernel
+def collide_statics(pos, prev, blob_of, blob_material, planes, segments, circles, polygons,
+                    contact_normal, contact_depth, contact_material):
+    """Push vertices out of every static collider: one kernel per solver kind present. Each kind
+    comes as its rows (geom, shape_offsets, material, aabb: model.StaticSet), empty if absent."""
+    if planes[0].shape[0] > 0:
+        _collide_plane(pos, prev, blob_of, blob_material, *planes, contact_normal, contact_depth, contact_material)
+    if segments[0].shape[0] > 0:
+        _collide_segment(pos, prev, blob_of, blob_material, *segments, contact_normal, contact_depth,
+                         contact_material)
+    if circles[0].shape[0] > 0:
+        _collide_circle(pos, prev, blob_of, blob_material, *circles, contact_normal, contact_depth, contact_material)
+    if polygons[0].shape[0] > 0:
+        _collide_polygon(pos, prev, blob_of, blob_material, *polygons, contact_normal, contact_depth,
+                         contact_material)
