@@ -15,11 +15,11 @@ FLAGS = dict(cache=True, error_model="numpy", nogil=True)
 kernel = numba.njit(**FLAGS)
 inline_kernel = numba.njit(inline="always", **FLAGS)
 
-_STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, Python function, flags)
+_STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, its Python function)
 _TWINS: dict[int, object] = {}  # id(serial build) -> parallel build
 
 
-def stage_kernel(fn=None, **flags):
+def stage_kernel(fn):
     """A stage kernel: returns its serial build (numba.prange runs as range); `parallel(k)` gives
     the same code built with parallel=True, which stages use from 32 blobs (model.parallel).
     Both give the same bits: a prange loop's iterations write only their own slots.
@@ -32,10 +32,8 @@ def stage_kernel(fn=None, **flags):
     3× slower, while at 1,000 blobs the parallel builds are far faster, on one thread too (the
     perimeter sweep: 16.7 ns per edge serial, 7.1 parallel on one thread, 3.7 on two).
     """
-    if fn is None:
-        return lambda f: stage_kernel(f, **flags)
-    serial = numba.njit(**{**FLAGS, **flags})(fn)
-    _STAGES[id(serial)] = (serial, fn, flags)
+    serial = kernel(fn)
+    _STAGES[id(serial)] = (serial, fn)
     return serial
 
 
@@ -46,14 +44,14 @@ def parallel(serial):
     of the stage kernels it calls. Built on first use, when every module it names is loaded."""
     twin = _TWINS.get(id(serial))
     if twin is None:
-        _, fn, flags = _STAGES[id(serial)]
+        _, fn = _STAGES[id(serial)]
         scope = dict(fn.__globals__)
         code = fn.__code__.replace(co_name=fn.__name__ + "_parallel", co_qualname=fn.__qualname__ + "_parallel")
         function = types.FunctionType(code, scope, code.co_name, fn.__defaults__, fn.__closure__)
         # parallel=True where the code has prange loops of its own; a stage that only calls others
         # (the driver, say) is parallel through them
         own_loops = "prange" in fn.__code__.co_names
-        twin = _TWINS[id(serial)] = numba.njit(**{**FLAGS, **flags, "parallel": own_loops})(function)
+        twin = _TWINS[id(serial)] = numba.njit(parallel=own_loops, **FLAGS)(function)
         for name, value in scope.items():  # after registering the twin: a module's kernels name each other
             if id(value) in _STAGES:
                 scope[name] = parallel(value)

@@ -133,7 +133,7 @@ def _lap(clock, stage, t):
     return now
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True)  # not nogil: an object-mode block takes the GIL
 def _now():
     with numba.objmode(now="float64"):
         now = time.perf_counter()
