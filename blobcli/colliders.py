@@ -4,7 +4,7 @@ reads, its outline for drawing, and how deep a point lies inside it.
 Everything that knows about collider kinds reads this table: scene validation (the keys),
 the model builder (kernel rows and bounding boxes), the recording and the filmstrip (the
 outline) and the stress detectors (the depth). The solver kernels themselves live in
-`blobcli.sim.statics`, one per `solver` name, all with one signature.
+`blobcli.sim.statics`, one per `solver` name, all with one signature, run by its `collide_statics`.
 
 Kernel rows, 4 float64 each: plane (px, py, nx, ny) with unit n out of the solid side;
 circle (cx, cy, r, 0); segment and polygon edge (ax, ay, bx, by). Polygons (boxes too) are

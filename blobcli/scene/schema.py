@@ -30,7 +30,7 @@ MIN_LENGTH = 1e-6  # m: radii, sizes and segment lengths; smaller shapes lose th
 MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no blob may start there
 MAX_NAME = 100  # characters of a scene or blob name (the scene name becomes a file name)
 
-METHODS = ("kot", "xpbd", "gas", "springs")  # area methods; blobcli.area.AREA_METHODS has the same names
+METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/sim/area.py
 
 
 class SceneError(Exception):

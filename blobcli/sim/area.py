@@ -1,5 +1,5 @@
-"""Area stages: how a blob keeps its volume, picked by name (AREA_METHODS); each reads its own
-model arrays, and the step (sim/pipeline.py) calls the one a scene names.
+"""Area stages: how a blob keeps its volume, picked by the scene's `method` (KOT, ... below); each
+reads its own model arrays, and the step (sim/pipeline.py) calls the one a scene names.
 
     kot      exact projection onto the target area (the default; below)
     xpbd     the area as one compliant XPBD constraint per blob, solved iteratively
@@ -149,8 +149,7 @@ def area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
         solve_distance(pos, inv_mass, i, j, rest[s], lam, s, compliance[blob_of[i]] / (h * h))
 
 
-# The table of methods: the step calls AREA_METHODS[name] by its index (KOT, ... below), and
-# every method reads its own model arrays (see sim/pipeline.py).
-AREA_METHODS = {"kot": area_kot, "xpbd": area_xpbd, "gas": area_gas, "springs": area_springs}
-assert tuple(AREA_METHODS) == METHODS
+# The compiled step cannot look a kernel up in a dict: it picks the method by its index in
+# METHODS (sim/pipeline.py, one branch per method), so the names and indices must agree.
+assert METHODS == ("kot", "xpbd", "gas", "springs")
 KOT, XPBD, GAS, SPRINGS = range(len(METHODS))

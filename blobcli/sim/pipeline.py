@@ -85,7 +85,7 @@ def _advance(steps, state, model, settings, clock):
             for _ in range(c.iterations):
                 solve_perimeter(s.position, m.inv_mass, m.offsets, m.rest_length, m.compliance, s.lam, h)  # XPBD
                 t = _lap(clock, PERIMETER, t)
-                # area.AREA_METHODS, by index; kot: exact, a h² + b h + c = 0
+                # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
                 if c.method == KOT:
                     area_kot(s.position, m.inv_mass, m.offsets, m.target_area)
                 elif c.method == XPBD:
