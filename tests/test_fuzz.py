@@ -134,7 +134,7 @@ def good_trajectory(d):
 NAMES = ["particles/blobs/position/value", "particles/blobs/position/step", "particles/blobs/position/time",
          "observables/area/value", "observables/kinetic_energy/value", "parameters/blob_offsets",
          "parameters/blob_names", "parameters/target_area", "parameters/mass", "parameters/scene",
-         "restart/position", "restart/velocity", "restart/impact_speed"]
+         "restart/position", "restart/velocity", "restart/impact", "restart/pair_key", "restart/pair_impact"]
 
 
 @FUZZ

@@ -95,14 +95,17 @@ def test_connectivity_and_per_vertex_mass(trajectory):
         np.testing.assert_allclose(np.add.reduceat(mass, offsets[:-1]), f["parameters/mass"][...])
 
 
-def test_format_1_files_are_still_read(tmp_path):
+def test_format_1_files_are_still_read_but_not_resumed(tmp_path):
     from pathlib import Path
-    golden = Path(__file__).parent / "golden" / "gish.h5"
-    with h5py.File(golden) as f:
+    old = Path(__file__).parent / "golden" / "format1.h5"  # the gish golden as blobsim 0.1 wrote it
+    with h5py.File(old) as f:
         assert f.attrs["blobsim_format"] == 1
-    for args in (("compare", golden, golden), ("replay", golden, "-o", tmp_path / "g.rrd"),
-                 ("render", golden, "-o", tmp_path / "g.png")):
+    for args in (("compare", old, old), ("replay", old, "-o", tmp_path / "g.rrd"),
+                 ("render", old, "-o", tmp_path / "g.png")):
         assert cli(*args)[0] == 0, args
+    scene = Path(__file__).parent.parent / "scenes" / "gish.toml"
+    code, _, err = cli("run", scene, "--resume", old, "--steps", 300, "-q")
+    assert code == 2 and "resuming needs format 3" in err, err
 
 
 def test_h5dump_reads_the_file(trajectory):

@@ -25,10 +25,11 @@ import numpy as np
 from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 2
-READS_FORMATS = (1, 2)  # format 1 lacks /connectivity, particles/blobs/mass and the units module
+FORMAT_VERSION = 3
+READS_FORMATS = (1, 2, 3)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
+#                            formats 1 and 2 store impact_speed in /restart (not resumable by this blobsim)
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 2, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 3, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
@@ -58,7 +59,11 @@ LAYOUT = """\
              env_PYTHONHASHSEED
 /restart                     the exact state at the last recorded frame (for --resume)
     position, velocity       float64 [vertices, 2]
-    impact_speed             float64 [blobs]: each blob's ongoing impact on statics (restitution)
+    impact                   float64 [blobs, 4]: each blob's latest impact on statics (restitution): fastest
+                             approach (m/s), energy it left with (J/kg, -inf before), kinetic and potential
+                             energy it came with (J/kg)
+    pair_key                 int64 [pairs]: blob pairs a < b with an impact record, as a × blobs + b, sorted
+    pair_impact              float64 [pairs, 4]: their impact records, as impact's
       attrs: step
 """
 POSITION = "particles/blobs/position"
@@ -170,7 +175,8 @@ class TrajectoryWriter:
         self._area = np.empty((self.block, b))
         self._kinetic = np.empty((self.block, b))
         self._last_vel = np.empty((n, 2))
-        self._last_impact = np.empty(b)
+        self._last_impact = np.empty((b, 4))
+        self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
         self._count = 0
         self._last_flush = time.monotonic()
         self._frame_bytes = 8 * (2 * n + 2 * b) + 16
@@ -184,7 +190,8 @@ class TrajectoryWriter:
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._last_vel[...] = state.vel
-        self._last_impact[...] = state.impact_speed
+        self._last_impact[...] = state.impact
+        self._last_pairs = restart_pairs(state)
         self._count = k + 1
         if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
@@ -206,19 +213,21 @@ class TrajectoryWriter:
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, steps[-1])
+        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, self._last_pairs, steps[-1])
         self.frames = stop
         self._count = 0
         self.file.flush()
         self._last_flush = time.monotonic()
 
-    def _write_restart(self, position, velocity, impact_speed, step):
+    def _write_restart(self, position, velocity, impact, pairs, step):
         restart = self.file.require_group(RESTART)
-        for name, data in (("position", position), ("velocity", velocity), ("impact_speed", impact_speed)):
-            if name in restart:
-                restart[name][...] = data
+        for name, data in (("position", position), ("velocity", velocity), ("impact", impact),
+                           ("pair_key", pairs[0]), ("pair_impact", pairs[1])):
+            if name not in restart:  # the pair records change length: resizable along axis 0
+                restart.create_dataset(name, data=data, maxshape=(None, *data.shape[1:]), chunks=True)
             else:
-                restart.create_dataset(name, data=data)
+                restart[name].resize(len(data), axis=0)
+                restart[name][...] = data
         restart.attrs["step"] = step
 
     def adopt(self, source, state, stop_requested) -> int | None:
@@ -243,10 +252,17 @@ class TrajectoryWriter:
                 self.frames += stop - start
             state.pos[...] = restart["position"][...]
             state.vel[...] = restart["velocity"][...]
-            state.impact_speed[...] = restart["impact_speed"][...]
+            state.impact[...] = restart["impact"][...]
+            keys = restart["pair_key"][...]
+            if len(keys) > len(state.pair_key):
+                raise TrajectoryError(f"{source}: {RESTART}/pair_key holds {len(keys)} blob pairs, more than this "
+                                      f"scene keeps ({len(state.pair_key)})")
+            state.pair_key[:len(keys)] = keys
+            state.pair_impact[:len(keys)] = restart["pair_impact"][...]
+            state.pair_count[0] = len(keys)
             # The restart state goes with the frames at once: a file resumed and stopped before
             # its next recorded frame must still be resumable.
-            self._write_restart(state.pos, state.vel, state.impact_speed, step)
+            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), step)
             self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
         self.file.flush()
         return step
@@ -343,9 +359,15 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
             problems.append(f"{p} attribute {key} is missing")
     if "dt" in f[p].attrs and not (np.isfinite(f[p].attrs["dt"]) and f[p].attrs["dt"] > 0):
         problems.append(f"{p} attribute dt is not a positive number")
-    if need_restart or RESTART in f:
+    if need_restart and version < 3:
+        problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 3): "
+                        "run it again")
+    elif need_restart or RESTART in f and version >= 3:
+        pairs = f[f"{RESTART}/pair_key"].shape[0] if f"{RESTART}/pair_key" in f else 0
         problems += [_shape_problem(f, f"{RESTART}/position", (n, 2)), _shape_problem(f, f"{RESTART}/velocity", (n, 2)),
-                     _shape_problem(f, f"{RESTART}/impact_speed", (b,))]
+                     _shape_problem(f, f"{RESTART}/impact", (b, 4)),
+                     _shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
+                     _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4))]
         if RESTART in f and "step" not in f[RESTART].attrs:
             problems.append(f"{RESTART} attribute step is missing")
     return [x for x in problems if x]
@@ -432,6 +454,12 @@ def open_trajectory(path, need_restart: bool = False) -> h5py.File:
         f.close()
         raise TrajectoryError(f"{path}: not a usable blobsim trajectory: {'; '.join(problems[:3])}")
     return f
+
+
+def restart_pairs(state):
+    """The kept blob-pair impact records of a state (copies): (pair_key, pair_impact)."""
+    n = int(state.pair_count[0])
+    return state.pair_key[:n].copy(), state.pair_impact[:n].copy()
 
 
 def text(value) -> str:

@@ -107,8 +107,8 @@ class SceneSettings:
     iterations: int = key(2, "", "solver iterations per substep", "int", between(1, MAX_ITERATIONS))
     gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
-    damping: float = key(2.0, "1/s", "decay rate of each blob's velocity relative to its centre of mass "
-                         "(deformation and spin)", "float", nonnegative)
+    damping: float = key(2.0, "1/s", "decay rate of each blob's deformation: its velocity relative to its "
+                         "best-fit rigid motion (moving, spinning and rolling are not damped)", "float", nonnegative)
 
 
 @dataclass(frozen=True)
@@ -130,6 +130,8 @@ class BlobDef:
     points: tuple | None = key(None, "m", "explicit simple polygon, either winding (instead of a ring)", "points")
     mass: float = key(1.0, "kg", "total mass, spread evenly over the vertices", "float", positive)
     velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
+    angular_velocity: float = key(0.0, "rad/s", "initial rigid spin about the blob's centre of mass, "
+                                  "counter-clockwise positive; added to `velocity`", "float")
     pressure: float = key(1.0, "", "target area = pressure × rest area", "float", positive)
     compliance: float = key(2e-4, "m/N", "perimeter compliance α (XPBD); 0 = inextensible", "float", nonnegative)
     area_compliance: float = key(0.0, "m²/N", "method xpbd: compliance α of the area constraint; 0 = hard", "float",
@@ -140,7 +142,8 @@ class BlobDef:
     friction: float = key(0.5, "", "kinetic (sliding) friction coefficient μ_k", "float", nonnegative)
     static_friction: float = key(0.6, "", "static friction coefficient μ_s (>= friction); "
                                  "default: `friction` when only that is given, else 0.6", "float", nonnegative)
-    restitution: float = key(0.0, "", "bounciness e in [0, 1]", "float", unit_interval)
+    restitution: float = key(0.0, "", "restitution e in [0, 1]: the blob's centre leaves a contact at e × its "
+                             "impact speed, never faster (rebound about e² of the drop)", "float", unit_interval)
     grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", between(1, MAX_BLOBS))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
 

@@ -26,7 +26,9 @@ Macklin et al. 2014, but only where it is needed: applied to every contact it pu
 into a pile of equal blobs and blew it apart). Side by side, equal masses, or zero gravity: f or
 the ratio is 1, and momentum is exact.
 
-Resolution order: Gauss-Seidel, each contact against the positions its predecessors left.
+Resolution order: Gauss-Seidel, each contact against the positions its predecessors left, and
+every second iteration in the reverse order: one order alone favours the vertices it visits
+first, which a mirror image of the scene visits last, so symmetric setups drifted apart.
 Scenes of 64 blobs or more are cut into vertical strips (see _resolve), and contacts that
 share no blob run in parallel; smaller scenes keep one strip, so their contacts go in vertex
 order. Either way the order is set by the scene, not by the number of threads.
@@ -52,6 +54,7 @@ import numba
 import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
+from .integrate import NO_BOUNCE, bounce
 from .ring import next_in_ring, ring_contains
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
@@ -321,7 +324,7 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
 
 @stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
-             center, radius, up_x, up_y, strip_of, strip_start, strip_blobs):
+             center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
     A contact moves only its own two blobs, so contacts within different strips are
@@ -334,7 +337,8 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_
     against 0.14 mm over seconds 6-10). The strips are set by the scene (see _strips), so the
     result is the same for any number of threads."""
     strips = strip_start.shape[0] - 1
-    for p in range(pos.shape[1]):
+    for q in range(pos.shape[1]):
+        p = pos.shape[1] - 1 - q if backward else q
         if c_edge[p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[p]]]) >= 2:
             _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
                              contact_depth, center, radius, up_x, up_y)
@@ -342,24 +346,27 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_
         for q in numba.prange((strips - parity) // 2):
             s = parity + 2 * q
             _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
-                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs)
+                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
     for parity in range(2):
         for q in numba.prange((strips - parity + 1) // 2):
             s = parity + 2 * q
             _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
-                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs)
+                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
 
 
 @inline_kernel
 def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
-                     contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs):
+                     contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
-    those of a vertex in `other` with an edge in s."""
+    those of a vertex in `other` with an edge in s; backward: each strip's in reverse order."""
     for side in range(1 if other == s else 2):
         here, there = (s, other) if side == 0 else (other, s)
-        for k in range(strip_start[here], strip_start[here + 1]):
-            a = strip_blobs[k]
-            for p in range(offsets[a], offsets[a + 1]):
+        first, last = strip_start[here], strip_start[here + 1]
+        for k in range(first, last):
+            a = strip_blobs[first + last - 1 - k if backward else k]
+            o, e = offsets[a], offsets[a + 1]
+            for q in range(o, e):
+                p = o + e - 1 - q if backward else q
                 if c_edge[p] >= 0 and strip_of[blob_of[c_edge[p]]] == there:
                     _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
                                      contact_depth, center, radius, up_x, up_y)
@@ -447,7 +454,104 @@ def detect_blob_contacts(pos, inv_mass, offsets, orient, center, radius, edges, 
 
 @stage_kernel
 def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth,
-                          center, radius, up_x, up_y, strips):
-    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips)."""
+                          center, radius, up_x, up_y, strips, backward):
+    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips; backward:
+    in reverse order)."""
     _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth, center, radius,
-             up_x, up_y, strips[0], strips[1], strips[2])
+             up_x, up_y, strips[0], strips[1], strips[2], backward)
+
+
+@kernel
+def carry_impacts(pairs, blob_count, keys, records, count):
+    """The impact records (integrate.bounce) of this substep's pairs: each pair's from the kept ones
+    (keys[:count[0]], sorted pair keys a B + b), or a fresh record."""
+    out = np.empty((pairs.shape[0], records.shape[1]))
+    for k in range(pairs.shape[0]):
+        key = pairs[k, 0] * blob_count + pairs[k, 1]
+        j = np.searchsorted(keys[:count[0]], key)
+        if j < count[0] and keys[j] == key:
+            out[k] = records[j]
+        else:
+            out[k, 0], out[k, 1], out[k, 2], out[k, 3] = 0.0, NO_BOUNCE, 0.0, 0.0
+    return out
+
+
+@kernel
+def keep_impacts(pairs, blob_count, pair_records, keys, records, count):
+    """Keep the records of the pairs that have had an impact (V > 0), sorted by key, for the next
+    substep and for /restart."""
+    kept = np.empty(pairs.shape[0], np.int64)
+    n = 0
+    for k in range(pairs.shape[0]):
+        if pair_records[k, 0] > 0.0:
+            kept[n] = k
+            n += 1
+    key = np.empty(n, np.int64)
+    for j in range(n):
+        key[j] = pairs[kept[j], 0] * blob_count + pairs[kept[j], 1]
+    order = np.argsort(key)  # keys are distinct: any sort gives the same order
+    for j in range(n):
+        keys[j] = key[order[j]]
+        records[j] = pair_records[kept[order[j]]]
+    count[0] = n
+
+
+@stage_kernel
+def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blob_contact_depth, pairs, predicted,
+                     pair_records, rest_speed):
+    """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
+    vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
+    e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
+    unit of its reduced mass μ = m_a m_b / (m_a + m_b); gravity does not change relative motion
+    (P = 0). Δu goes to the two blobs as uniform velocity changes -Δu m_b/(m_a + m_b) n̄ and
+    +Δu m_a/(m_a + m_b) n̄: momentum is unchanged. Pairs run one after another, in pair order."""
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, 0], pairs[k, 1]
+        oa, ea, ob, eb = offsets[a], offsets[a + 1], offsets[b], offsets[b + 1]
+        touching = False
+        for p in range(oa, ea):
+            touching |= blob_contact_depth[p] > 0.0 and c_edge[p] >= 0 and blob_of[c_edge[p]] == b
+        for p in range(ob, eb):
+            touching |= blob_contact_depth[p] > 0.0 and c_edge[p] >= 0 and blob_of[c_edge[p]] == a
+        if not touching:
+            continue
+        ma, mb = (ea - oa) / inv_mass[oa], (eb - ob) / inv_mass[ob]
+        mu = ma * mb / (ma + mb)
+        ca, va, ka = _centre_motion(pos, vel, oa, ea)
+        cb, vb, kb = _centre_motion(pos, vel, ob, eb)
+        nx, ny = cb[0] - ca[0], cb[1] - ca[1]
+        length = math.sqrt(nx * nx + ny * ny)
+        if length == 0.0:
+            continue
+        nx, ny = nx / length, ny / length
+        # kinetic energy in the pair's centre-of-mass frame: Σ m k - ½ (m_a + m_b) |v_cm|², per μ
+        before = (ma * predicted[a, 2] + mb * predicted[b, 2]
+                  - 0.5 * ((ma * predicted[a, 0] + mb * predicted[b, 0]) ** 2
+                           + (ma * predicted[a, 1] + mb * predicted[b, 1]) ** 2) / (ma + mb)) / mu
+        after = (ma * ka + mb * kb - 0.5 * ((ma * va[0] + mb * vb[0]) ** 2 + (ma * va[1] + mb * vb[1]) ** 2)
+                 / (ma + mb)) / mu
+        approach = (predicted[a, 0] - predicted[b, 0]) * nx + (predicted[a, 1] - predicted[b, 1]) * ny
+        u = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny
+        du = bounce(pair_records, k, approach, before, 0.0, 0.0, u, after - 0.5 * u * u,
+                    max(material[a, 2], material[b, 2]), rest_speed)
+        if du != 0.0:
+            for p in range(oa, ea):
+                vel[0, p] -= du * mb / (ma + mb) * nx
+                vel[1, p] -= du * mb / (ma + mb) * ny
+            for p in range(ob, eb):
+                vel[0, p] += du * ma / (ma + mb) * nx
+                vel[1, p] += du * ma / (ma + mb) * ny
+
+
+@inline_kernel
+def _centre_motion(pos, vel, o, e):
+    """Centre, centre velocity and kinetic energy per unit mass (½ mean |v|²) of ring o..e."""
+    cx = cy = vx = vy = k = 0.0
+    for i in range(o, e):
+        cx += pos[0, i]
+        cy += pos[1, i]
+        vx += vel[0, i]
+        vy += vel[1, i]
+        k += vel[0, i] ** 2 + vel[1, i] ** 2
+    n = e - o
+    return (cx / n, cy / n), (vx / n, vy / n), 0.5 * k / n

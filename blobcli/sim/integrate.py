@@ -9,60 +9,123 @@ import math
 
 import numba
 
-from ..jit import stage_kernel
+from ..jit import inline_kernel, stage_kernel
 
-REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter)
+REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter) ...
+MIN_REST_SPEED = 0.01  # m/s ... nor below this (without gravity, jitter from pushing overlaps apart)
+NO_BOUNCE = -math.inf  # leave energy of a contact that has not bounced yet (see `bounce`)
+
+
+@inline_kernel
+def rigid_motion(pos, vel, o, e):
+    """The rigid motion that best fits ring o..e's velocities: (c, v_c, ω) with c = Σ x / n,
+    v_c = Σ v / n and ω = Σ r × v / Σ |r|², r = x - c. Vertex masses are equal within a blob,
+    so c is the centre of mass, and v_c + ω ẑ × r is the least-squares (kinetic-energy) fit:
+    ∂/∂v_c Σ |v - v_c - ω ẑ × r|² = 0 gives the mean (Σ r = 0), ∂/∂ω gives ω I = L. The residual
+    v - v_c - ω ẑ × r, the deformation, carries neither momentum nor angular momentum."""
+    n = e - o
+    cx = cy = vx = vy = 0.0
+    for i in range(o, e):
+        cx += pos[0, i]
+        cy += pos[1, i]
+        vx += vel[0, i]
+        vy += vel[1, i]
+    cx, cy, vx, vy = cx / n, cy / n, vx / n, vy / n
+    L = I = 0.0
+    for i in range(o, e):
+        rx, ry = pos[0, i] - cx, pos[1, i] - cy
+        L += rx * (vel[1, i] - vy) - ry * (vel[0, i] - vx)
+        I += rx * rx + ry * ry
+    return cx, cy, vx, vy, L / I if I > 0.0 else 0.0
 
 
 @stage_kernel
-def damp_relative(vel, inv_mass, offsets, factor):
-    """Decay each blob's velocity relative to its centre of mass by factor = exp(-damping h).
-
-    This damps deformation and spin alike. Spin is damped on purpose: position-based
-    projection conserves linear momentum exactly but angular momentum only to O(h), and a
-    slack blob resting on a floor has a neutral rolling mode, so that small numerical
-    torque kept a resting blob rocking forever (±2 mm at 4 mm/s) when only deformation was
-    damped. Damping spin as well gives the blob rolling resistance, like a viscous
-    filling, and it settles to rest (below 1e-4 m/s within seconds).
-    """
+def damp_deformation(pos, vel, offsets, factor):
+    """Decay each blob's deformation velocity by factor = exp(-damping h): v <- v_rig + (v - v_rig) f,
+    with v_rig = v_c + ω ẑ × r the best-fit rigid motion (rigid_motion). Neither momentum nor
+    angular momentum changes, and a blob that moves, spins or rolls rigidly is not slowed."""
     for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
-        m_sum = px = py = 0.0
+        cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
         for i in range(o, e):
-            m = 1.0 / inv_mass[i]
-            m_sum += m
-            px += m * vel[0, i]
-            py += m * vel[1, i]
-        vx, vy = px / m_sum, py / m_sum
-        # v <- v_cm + (v - v_cm) f keeps Σ m v: damping never moves a blob's centre of mass.
-        for i in range(o, e):
-            vel[0, i] = vx + (vel[0, i] - vx) * factor
-            vel[1, i] = vy + (vel[1, i] - vy) * factor
-
+            rigid_x = vx - w * (pos[1, i] - cy)
+            rigid_y = vy + w * (pos[0, i] - cx)
+            vel[0, i] = rigid_x + (vel[0, i] - rigid_x) * factor
+            vel[1, i] = rigid_y + (vel[1, i] - rigid_y) * factor
 
 
 @stage_kernel
-def predict(pos, prev, vel, lam, contact_depth, gx, gy, h):
-    """x_prev <- x; v += g h; x += v h; clear this substep's multipliers and contacts."""
-    for i in numba.prange(pos.shape[1]):
-        prev[0, i] = pos[0, i]
-        prev[1, i] = pos[1, i]
-        vel[0, i] += gx * h
-        vel[1, i] += gy * h
-        pos[0, i] += vel[0, i] * h
-        pos[1, i] += vel[1, i] * h
-        lam[i] = 0.0  # XPBD multipliers accumulate over one substep's iterations only
-        contact_depth[i] = 0.0
+def predict(pos, prev, vel, lam, contact_depth, offsets, predicted, gx, gy, h):
+    """x_prev <- x; v += g h; x moves by the rigid motion exactly and by the deformation to first
+    order; clear this substep's multipliers and contacts. predicted[b] = (v_c, ½ mean |v|², -g · c), the
+    blob's velocity, kinetic and potential energy per unit mass before the constraints (restitution).
 
+    x += h v would move a spinning vertex along its tangent, off its circle around c by
+    |r| (√(1 + ω²h²) - 1); the perimeter stage then pulls it back and the chord it travelled is
+    short of ωh: spin decayed (35 % of 4 rad/s in 10 s at h = 1/240 s). So, with (c, v_c, ω) the
+    best-fit rigid motion (rigid_motion) and R(φ) the rotation by φ,
+        x <- c + h v_c + R(ωh) r + h (v - v_c - ω ẑ × r),
+    which is x + h v to first order, and moves a rigid blob exactly: no edge changes length."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        for i in range(o, e):
+            prev[0, i] = pos[0, i]
+            prev[1, i] = pos[1, i]
+            vel[0, i] += gx * h
+            vel[1, i] += gy * h
+            lam[i] = 0.0  # XPBD multipliers accumulate over one substep's iterations only
+            contact_depth[i] = 0.0
+        cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
+        kinetic = 0.0
+        for i in range(o, e):
+            kinetic += vel[0, i] ** 2 + vel[1, i] ** 2
+        predicted[b, 0], predicted[b, 1], predicted[b, 2], predicted[b, 3] = vx, vy, 0.5 * kinetic / (e - o), \
+            -(gx * cx + gy * cy)
+        cos, sin = math.cos(w * h), math.sin(w * h)
+        for i in range(o, e):
+            rx, ry = pos[0, i] - cx, pos[1, i] - cy
+            dx = vel[0, i] - vx + w * ry  # the deformation velocity v - v_c - ω ẑ × r
+            dy = vel[1, i] - vy - w * rx
+            pos[0, i] = cx + h * vx + cos * rx - sin * ry + h * dx
+            pos[1, i] = cy + h * vy + sin * rx + cos * ry + h * dy
 
 
 @stage_kernel
-def update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_material, h):
-    """v = (x - x_prev) / h, then kinetic Coulomb friction at static contacts."""
+def update_velocities(pos, prev, offsets, vel, contact_normal, contact_depth, contact_material, h):
+    """v from the substep's motion, rotation read as an angle; then kinetic Coulomb friction at
+    static contacts.
+
+    v = (x - x_prev) / h reads a rotation by θ as the chord (R(θ) - 1) r / h: shorter than
+    ω |r| by sin(θ/2) / (θ/2), and turned: spin would decay every substep. So the motion is split
+    into the centre's translation c - c_prev, the rotation R(θ) that best fits the ring's turn
+    (2D Procrustes: θ minimizes Σ |r - R(θ) r_prev|², tan θ = Σ r_prev × r / Σ r_prev · r), and
+    the rest, and
+        v = (c - c_prev) / h + (θ / h) ẑ × r + (r - R(θ) r_prev) / h.
+    The two rigid fields differ from the chord only in ways that carry no momentum (Σ r = 0):
+    Σ m v is (x - x_prev) / h's; a rigid motion is read back exactly."""
     inv_h = 1.0 / h
+    for b in numba.prange(offsets.shape[0] - 1):
+        o, e = offsets[b], offsets[b + 1]
+        n = e - o
+        cx = cy = px = py = 0.0
+        for i in range(o, e):
+            cx += pos[0, i]
+            cy += pos[1, i]
+            px += prev[0, i]
+            py += prev[1, i]
+        cx, cy, px, py = cx / n, cy / n, px / n, py / n
+        cross = dot = 0.0
+        for i in range(o, e):
+            rx, ry, qx, qy = pos[0, i] - cx, pos[1, i] - cy, prev[0, i] - px, prev[1, i] - py
+            cross += qx * ry - qy * rx
+            dot += qx * rx + qy * ry
+        theta = math.atan2(cross, dot)
+        cos, sin, w = math.cos(theta), math.sin(theta), theta * inv_h
+        for i in range(o, e):
+            rx, ry, qx, qy = pos[0, i] - cx, pos[1, i] - cy, prev[0, i] - px, prev[1, i] - py
+            vel[0, i] = (cx - px) * inv_h - w * ry + (rx - (cos * qx - sin * qy)) * inv_h
+            vel[1, i] = (cy - py) * inv_h + w * rx + (ry - (sin * qx + cos * qy)) * inv_h
     for i in numba.prange(pos.shape[1]):
-        vel[0, i] = (pos[0, i] - prev[0, i]) * inv_h
-        vel[1, i] = (pos[1, i] - prev[1, i]) * inv_h
         D = contact_depth[i]
         if D == 0.0:
             continue
@@ -84,47 +147,76 @@ def update_velocities(pos, prev, vel, contact_normal, contact_depth, contact_mat
 
 
 
+@inline_kernel
+def bounce(record, k, approach, energy, potential, potential_now, u, other, e, rest_speed):
+    """One substep of a contact's restitution rule along its normal, for record[k] = (V, E, K, P)
+    of the contact; returns the change Δu of the normal speed u to apply.
+
+    V is the contact's fastest approach so far, read before the substep's constraints
+    (`approach`): after them a hard blob has already stopped, and what is left depends on the
+    substeps and iterations, not on e. K and P are the kinetic and potential energy (per unit
+    of the normal's mass) then (`energy`, `potential`; P_now after the solve). Once the solve leaves the bodies no
+    longer approaching (u >= 0), they bounce: u is set to e V', up for a hard blob that stopped
+    dead, down for a soft one whose own recoil would leave faster. V'² = V² + 2 (P - P_now) is
+    the impact speed that the fall while squashing adds (coarse substeps squash a hard blob,
+    which would otherwise rebound from lower), so the rebound is about e² of the fall whatever
+    the step. Never more kinetic energy than came in: the solve has turned some into vibration
+    (`other`: the kinetic energy besides ½ u²), so ½ u² <= K + P - P_now - other. `leave` keeps
+    the energy E = ½ u² + P_now it left with (-∞ before the bounce), and while the contact lasts
+    u is never raised again (that would cancel gravity) nor let above √(2 (E - P_now)): the
+    blob's recoil, pushing it up or on, would add energy. So no bounce goes
+    higher than the drop. The record outlives the contact: a vibrating blob that has bounced
+    touches again on its way up, and those touches, inelastic for the vertex, would turn
+    vibration into lift. A new impact starts when the bodies approach faster than rest_speed
+    after a bounce (or faster than V before it); slower approaches never bounce (resting)."""
+    if approach > (rest_speed if record[k, 1] != NO_BOUNCE else record[k, 0]):
+        record[k, 0], record[k, 1], record[k, 2], record[k, 3] = approach, NO_BOUNCE, energy, potential
+    V = record[k, 0]
+    if u < 0.0 or V <= rest_speed:
+        return 0.0
+    if record[k, 1] == NO_BOUNCE:
+        fell = max(record[k, 3] - potential_now, 0.0)
+        leave = min(e * math.sqrt(V * V + 2.0 * fell), math.sqrt(2.0 * max(record[k, 2] + fell - other, 0.0)))
+        record[k, 1] = 0.5 * leave * leave + potential_now
+        return leave - u
+    return min(math.sqrt(2.0 * max(record[k, 1] - potential_now, 0.0)) - u, 0.0)
+
+
 @stage_kernel
-def restitution(vel, inv_mass, offsets, contact_normal, contact_depth, contact_material, impact_speed, rest_speed):
-    """Bounce: a blob whose impact on statics has ended leaves at e × its approach speed.
+def restitution(pos, vel, offsets, predicted, contact_normal, contact_depth, contact_material, impact, gx, gy,
+                rest_speed):
+    """Bounce off statics (the rule of `bounce`), of each blob's centre of mass.
 
     A vertex cannot bounce on its own: the perimeter and area stages average its reversed
-    velocity away against the rest of the blob, which is still falling. So restitution
-    acts on the whole blob. While it touches statics, its centre-of-mass approach speed
-    V along the depth-weighted contact normal n̄ is tracked; once the centre stops
-    approaching, every vertex gets Δv = (e V - u·n̄) n̄. Approaches slower than
-    rest_speed = REST_SPEED_FACTOR |g| h never bounce, so resting contacts do not jitter.
+    velocity away against the rest of the blob, which is still falling. So restitution acts
+    on the whole blob, along the depth-weighted normal n̄ of its static contacts, by one
+    uniform Δv = Δu n̄ that does not disturb its shape. For a deformable blob, e is the ratio
+    of its centre's leave and impact speeds: it rebounds to about e² of the drop, less what
+    it keeps as vibration. Energies here are per unit mass: ½ mean |v|².
     """
     for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
-        nx = ny = m_sum = ux = uy = 0.0
+        nx = ny = ux = uy = kinetic = cx = cy = 0.0
         e_max = 0.0  # the largest restitution among its contacts
         for i in range(o, e):
-            m = 1.0 / inv_mass[i]
-            m_sum += m
-            ux += m * vel[0, i]
-            uy += m * vel[1, i]
+            cx += pos[0, i]
+            cy += pos[1, i]
+            ux += vel[0, i]
+            uy += vel[1, i]
+            kinetic += vel[0, i] ** 2 + vel[1, i] ** 2
             D = contact_depth[i]
             if D > 0.0:
                 nx += D * contact_normal[0, i]
                 ny += D * contact_normal[1, i]
                 e_max = max(e_max, contact_material[2, i])
         length = math.sqrt(nx * nx + ny * ny)
-        if length == 0.0:  # airborne: any earlier impact is over
-            impact_speed[b] = 0.0
+        if length == 0.0:  # airborne (its impact record is kept: see `bounce`)
             continue
         nx, ny = nx / length, ny / length
-        un = (ux * nx + uy * ny) / m_sum  # centre-of-mass speed along the contact normal
-        if un < 0.0:  # still approaching: compression goes on; remember the fastest approach
-            impact_speed[b] = max(impact_speed[b], -un)
-        elif impact_speed[b] > rest_speed:
-            # Compression is over: leave at e times the approach speed (Poisson's view of
-            # restitution), by one uniform Δv that does not disturb the blob's shape.
-            dv = max(e_max * impact_speed[b] - un, 0.0)
+        u = (ux * nx + uy * ny) / (e - o)  # the centre's speed along n̄, after the solve
+        du = bounce(impact, b, -(predicted[b, 0] * nx + predicted[b, 1] * ny), predicted[b, 2], predicted[b, 3],
+                    -(gx * cx + gy * cy) / (e - o), u, 0.5 * kinetic / (e - o) - 0.5 * u * u, e_max, rest_speed)
+        if du != 0.0:
             for i in range(o, e):
-                vel[0, i] += dv * nx
-                vel[1, i] += dv * ny
-            impact_speed[b] = 0.0
-        else:
-            impact_speed[b] = 0.0
-
+                vel[0, i] += du * nx
+                vel[1, i] += du * ny

@@ -16,6 +16,8 @@ import numpy as np
 from ..colliders import COLLIDERS, SOLVERS
 from ..geometry import ring_next, signed_area
 from ..scene.schema import BlobDef, Scene, StaticDef
+from .collide import PAIRS_PER_BLOB
+from .integrate import NO_BOUNCE
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -62,6 +64,7 @@ class ModelArrays(NamedTuple):
     blob_of: np.ndarray
     inv_mass: np.ndarray
     rest_length: np.ndarray
+    rest_perimeter: np.ndarray
     target_area: np.ndarray
     compliance: np.ndarray
     material: np.ndarray
@@ -85,13 +88,13 @@ class Model:
     blob_of: np.ndarray  # (N,) int64, the blob owning each vertex
     inv_mass: np.ndarray  # (N,) 1/kg
     rest_length: np.ndarray  # (N,) m, edge i -> next vertex of its ring
+    rest_perimeter: np.ndarray  # (B,) m, Σ rest_length over each ring
     rest_area: np.ndarray  # (B,) m², signed: > 0 for counter-clockwise rings
     target_area: np.ndarray  # (B,) m², signed, = pressure × rest_area
     compliance: np.ndarray  # (B,) m/N, XPBD α of the perimeter edges
     material: np.ndarray  # (B, 3): static friction μ_s, kinetic μ_k, restitution e
     mass: np.ndarray  # (B,) kg
     statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
-    bounces: bool  # some blob can bounce off a static (statics present, some restitution > 0)
     orient: np.ndarray  # (B,) +1 counter-clockwise, -1 clockwise: the sign of outward normals
     # Settings of the other area methods (see area.py):
     area_compliance: np.ndarray  # (B,) method xpbd: α of the area constraint
@@ -105,7 +108,8 @@ class Model:
         """The model as the step's kernels read it."""
         kinds = {s.kind: (s.geom, s.shape_offsets, s.material, s.aabb) for s in self.statics}
         none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
-        return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.target_area,
+        return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.rest_perimeter,
+                           self.target_area,
                            self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
                            self.spring_pairs, self.spring_rest, self.spring_compliance,
                            *(kinds.get(kind, none) for kind in SOLVERS))
@@ -133,17 +137,26 @@ class State(NamedTuple):
     """What changes during a step, as the kernels read it: per-vertex vectors in structure-of-arrays
     layout, (2, N) with row 0 x and row 1 y, so that a loop over vertices reads contiguous memory
     (`pos` and `vel` are the (N, 2) views the rest of the program uses). position, velocity and
-    impact_speed are the state proper (what /restart stores); the rest is scratch rewritten every
+    the impact records are the state proper (what /restart stores); the rest is scratch rewritten every
     substep, kept here so that the per-vertex arrays are allocated once. The blob–blob pair lists
     change length every substep and live inside the step (sim/pipeline.py)."""
     position: np.ndarray  # (2, N) m
     velocity: np.ndarray  # (2, N) m/s
-    impact_speed: np.ndarray  # (B,) m/s, fastest approach of the blob's ongoing impact on statics
+    impact: np.ndarray  # (B, 4) each blob's latest impact on statics: fastest approach V (m/s), the energy it
+    #                     bounced with (J/kg; -inf before), the kinetic and potential energy it came with (J/kg):
+    #                     integrate.bounce
+    pair_key: np.ndarray  # (PAIRS_PER_BLOB B,) int64: the blob pairs (a, b), a < b, as a B + b, sorted, that have had
+    #                     an impact, in pair_key[:pair_count[0]] ...
+    pair_impact: np.ndarray  # (PAIRS_PER_BLOB B, 4) ... and their impact records, like `impact`
+    pair_count: np.ndarray  # (1,) int64
     previous: np.ndarray  # (2, N) m, positions at the start of the substep
+    predicted: np.ndarray  # (B, 4) each blob's centre-of-mass velocity (m/s), kinetic and potential energy (J/kg)
+    #                        before this substep's constraints
     lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
     contact_normal: np.ndarray  # (2, N) unit normal of the vertex's static contact
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
     contact_material: np.ndarray  # (3, N) combined μ_s, μ_k, e of that contact
+    perimeter_lam: np.ndarray  # (B,) the total-length constraints' multipliers this substep (perimeter.py)
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
     # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
@@ -199,7 +212,10 @@ def build(scene: Scene) -> tuple[Model, State]:
         names += copies
         rings.append((base[None, :, :] + shifts[:, None, :]).reshape(-1, 2))
         counts = np.full(len(copies), len(base))
-        velocities.append(np.broadcast_to(np.array(b.velocity), (len(copies) * len(base), 2)))
+        # v = v_0 + ω ẑ × (x - c), c the centre of mass (the vertex average: vertex masses are equal)
+        r = base - base.mean(axis=0)
+        spin = np.array(b.velocity) + b.angular_velocity * np.stack([-r[:, 1], r[:, 0]], axis=1)
+        velocities.append(np.tile(spin, (len(copies), 1)))
         area = signed_area(base)
         per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
                          (b.static_friction, b.friction, b.restitution), b.area_compliance, b.gas_pressure,
@@ -224,22 +240,30 @@ def build(scene: Scene) -> tuple[Model, State]:
     statics = build_statics(scene.statics)
     springs = internal_springs(pos, offsets)
     model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
-                  rest_length=rest_length, rest_area=rest_area, target_area=pressure * rest_area,
+                  rest_length=rest_length, rest_perimeter=np.add.reduceat(rest_length, offsets[:-1]),
+                  rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
-                  statics=statics, bounces=bool(statics) and bool(
-                      material[:, 2].any() or any(s.material[:, 2].any() for s in statics)),
+                  statics=statics,
                   orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
                   spring_compliance=1.0 / spring_stiffness)
     n, blobs = len(pos), len(counts)
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
-                  impact_speed=np.zeros(blobs), previous=np.ascontiguousarray(pos.T), lam=np.zeros(n),
+                  impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),
+                  pair_impact=no_impact(PAIRS_PER_BLOB * blobs), pair_count=np.zeros(1, np.int64),
+                  previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
                   contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
-                  area_lam=np.zeros(blobs), spring_lam=np.zeros(len(model.spring_pairs)),
+                  perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
+                  spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
                   c_edge=np.zeros(n, dtype=np.int64), c_t=np.zeros(n), c_depth2=np.zeros(n),
                   blob_contact_depth=np.zeros(n))
     return model, state
+
+
+def no_impact(count: int) -> np.ndarray:
+    """Impact records (V, E, K, P) of contacts that are not bouncing (integrate.bounce)."""
+    return np.tile([0.0, NO_BOUNCE, 0.0, 0.0], (count, 1))
 
 
 def internal_springs(pos, offsets) -> np.ndarray:

@@ -3,7 +3,7 @@
 Each stage is a kernel over flat arrays (model.State: structure of arrays). `_advance` calls
 them in order, for as many steps as it is asked, in one compiled call: Python is entered only
 between calls (to record a frame, update the progress bar, see a Ctrl-C), never per substep.
-A stage a scene does not need (damping off, one blob, no statics, nothing that bounces) is
+A stage a scene does not need (damping off, one blob, no statics) is
 not run: StepSettings says which, decided from the model when the call is made.
 
 The step is compiled twice from this one text (jit.stage_kernel): serial, and with every
@@ -21,17 +21,25 @@ import numpy as np
 
 from ..jit import build, inline_kernel, stage_kernel
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
-from .collide import PAIRS_PER_BLOB, detect_blob_contacts, find_blob_pairs, resolve_blob_contacts
-from .integrate import REST_SPEED_FACTOR, damp_relative, predict, restitution, update_velocities
+from .collide import (
+    PAIRS_PER_BLOB,
+    blob_restitution,
+    carry_impacts,
+    detect_blob_contacts,
+    find_blob_pairs,
+    keep_impacts,
+    resolve_blob_contacts,
+)
+from .integrate import MIN_REST_SPEED, REST_SPEED_FACTOR, damp_deformation, predict, restitution, update_velocities
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .statics import collide_statics
 
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
-          "velocities", "restitution")
-DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION = \
-    range(len(STAGES))
+          "velocities", "restitution", "blob restitution")
+(DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION,
+ BLOB_RESTITUTION) = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 
@@ -46,10 +54,9 @@ class StepSettings(NamedTuple):
     method: int  # index into area.METHODS
     up_x: float  # -g / |g| (0 without gravity): "above", for the stacking rule of sim/collide.py
     up_y: float
-    rest_speed: float  # m/s: slower impacts on statics never bounce (integrate.restitution)
+    rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
     collides: bool  # blob–blob stages: more than one blob
     statics: bool  # static collider stage: any static collider
-    bounces: bool  # restitution stage: statics present and some restitution > 0
 
 
 @stage_kernel
@@ -65,15 +72,17 @@ def _advance(steps, state, model, settings, clock):
     no_pairs = np.zeros((0, 2), np.int64)
     pairs, partners, strips = no_pairs, (np.zeros(blob_count + 1, np.int64), no_pairs[:, 0], no_pairs[:, 0]), \
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count))
+    pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
     t = _lap(clock, -1, 0.0)
     for n in range(steps):
         for _ in range(c.substeps):
             if c.damping > 0.0:
-                damp_relative(s.velocity, m.inv_mass, m.offsets, damping)  # (v - v_cm) *= exp(-damping h)
+                damp_deformation(s.position, s.velocity, m.offsets, damping)  # (v - v_rigid) *= exp(-damping h)
                 t = _lap(clock, DAMPING, t)
-            # x_prev <- x, v += g h, x += v h; this substep's multipliers and contacts start at 0
-            predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, c.gx, c.gy, h)
+            # x_prev <- x, v += g h, x += v h (rigid rotation exact); multipliers and contacts start at 0
+            predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, m.offsets, s.predicted, c.gx, c.gy, h)
             s.area_lam[:] = 0.0
+            s.perimeter_lam[:] = 0.0
             s.spring_lam[:] = 0.0
             t = _lap(clock, PREDICT, t)
             if c.collides:  # uniform grid of blob centres
@@ -81,9 +90,11 @@ def _advance(steps, state, model, settings, clock):
                                                                  s.blob_contact_depth)
                 if count > PAIRS_PER_BLOB * blob_count:
                     return n, TOO_MANY_PAIRS, count
+                pair_impact = carry_impacts(pairs, blob_count, s.pair_key, s.pair_impact, s.pair_count)
                 t = _lap(clock, BROAD_PHASE, t)
-            for _ in range(c.iterations):
-                solve_perimeter(s.position, m.inv_mass, m.offsets, m.rest_length, m.compliance, s.lam, h)  # XPBD
+            for it in range(c.iterations):
+                solve_perimeter(s.position, m.inv_mass, m.offsets, m.rest_length, m.rest_perimeter, m.compliance, s.lam,
+                                s.perimeter_lam, h)  # XPBD
                 t = _lap(clock, PERIMETER, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
                 if c.method == KOT:
@@ -102,20 +113,25 @@ def _advance(steps, state, model, settings, clock):
                     t = _lap(clock, BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, m.orient,
                                           m.material, s.c_edge, s.c_t, s.blob_contact_depth, s.center, s.radius,
-                                          c.up_x, c.up_y, strips)
+                                          c.up_x, c.up_y, strips, it % 2 == 1)
                     t = _lap(clock, BLOB_RESOLVE, t)
                 if c.statics:  # one kernel per collider kind
                     collide_statics(s.position, s.previous, m.blob_of, m.material, m.planes, m.segments, m.circles,
                                     m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
                     t = _lap(clock, STATICS, t)
-            # v = (x - x_prev) / h, kinetic friction at static contacts
-            update_velocities(s.position, s.previous, s.velocity, s.contact_normal, s.contact_depth,
+            # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
+            update_velocities(s.position, s.previous, m.offsets, s.velocity, s.contact_normal, s.contact_depth,
                               s.contact_material, h)
             t = _lap(clock, VELOCITIES, t)
-            if c.bounces:  # leave statics at e × approach speed
-                restitution(s.velocity, m.inv_mass, m.offsets, s.contact_normal, s.contact_depth, s.contact_material,
-                            s.impact_speed, c.rest_speed)
+            if c.statics:  # leave statics at e × impact speed, never faster
+                restitution(s.position, s.velocity, m.offsets, s.predicted, s.contact_normal, s.contact_depth,
+                            s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, RESTITUTION, t)
+            if c.collides:  # blob pairs leave each other at e × impact speed, never faster
+                blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, m.material, s.c_edge,
+                                 s.blob_contact_depth, pairs, s.predicted, pair_impact, c.rest_speed)
+                keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
+                t = _lap(clock, BLOB_RESTITUTION, t)
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:
             return n, RUNAWAY_VERTEX, bad
@@ -148,8 +164,8 @@ def settings(model: Model, params: Params) -> StepSettings:
     return StepSettings(dt=params.dt, substeps=params.substeps, iterations=params.iterations,
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
                         method=METHODS.index(params.method), up_x=float(up[0]), up_y=float(up[1]),
-                        rest_speed=REST_SPEED_FACTOR * g * h, collides=model.collides, statics=bool(model.statics),
-                        bounces=model.bounces)
+                        rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED), collides=model.collides,
+                        statics=bool(model.statics))
 
 
 NO_CLOCK = np.zeros(0)

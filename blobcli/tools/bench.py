@@ -108,7 +108,7 @@ def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) ->
             "ns_per_vertex_substep": sec * 1e9 / (n * params.substeps)}
 
 
-CORE_STAGES = ("predict", "perimeter", "area", "statics", "velocities")
+CORE_STAGES = ("predict", "perimeter", "area", "statics", "velocities", "restitution")
 
 
 def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tuple[dict, int, object]:
@@ -145,7 +145,7 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
 
     from ..scene.schema import parse_scene
     from ..sim.model import build, build_params
-    from ..sim.pipeline import advance
+    from ..sim.pipeline import advance, settings
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         return None
@@ -163,7 +163,10 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
         arrays = [np.ascontiguousarray(a) for a in (model.offsets, state.position.copy(), state.previous.copy(),
                                                     state.velocity.copy(), model.inv_mass, model.rest_length,
                                                     model.compliance, np.zeros(model.vertex_count),
-                                                    model.target_area, np.zeros(model.vertex_count))]
+                                                    model.target_area, np.zeros(model.vertex_count),
+                                                    model.rest_perimeter, np.zeros(model.blob_count),
+                                                    np.zeros((model.blob_count, 4)), state.impact.copy())]
+        step = settings(model, params)
         ptr = ctypes.POINTER(ctypes.c_double)
 
         def run_c(n_steps):
@@ -172,7 +175,8 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
                          ctypes.c_double(params.dt), ctypes.c_double(params.gravity[0]),
                          ctypes.c_double(params.gravity[1]), ctypes.c_long(model.blob_count),
                          off.ctypes.data_as(ctypes.POINTER(ctypes.c_long)), *[a.ctypes.data_as(ptr) for a in floats],
-                         ctypes.c_double(mu_s), ctypes.c_double(mu_k))
+                         ctypes.c_double(mu_s), ctypes.c_double(mu_k),
+                         ctypes.c_double(max(blob.restitution, floor.restitution)), ctypes.c_double(step.rest_speed))
         run_c(steps)
         threads = numba.get_num_threads()
         numba.set_num_threads(1)

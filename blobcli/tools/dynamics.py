@@ -1,0 +1,149 @@
+"""Faithful-dynamics figures: the checks a user can make with a ruler and a stopwatch, measured.
+
+    python -m blobcli.tools.dynamics
+
+prints one line per case (what physics says, what blobsim does). The suite asserts the same
+cases within the tolerances of tests/conftest.py (tests/test_invariants.py, test_collide.py);
+this prints the numbers that docs/physics.md quotes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..scene.schema import parse_scene
+from ..sim.model import build, build_params
+from ..sim.pipeline import advance
+
+G = 9.81
+FLOOR = '\n[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
+HARD = "pressure = 1.1\ncompliance = 1e-6\n"  # a hard blob: over-pressured, nearly inextensible skin
+
+
+def _run(text: str):
+    scene = parse_scene(text, "dynamics")
+    model, state = build(scene)
+    return model, state, build_params(scene)
+
+
+def _centre(state, o=0, e=None):
+    return state.pos[o:e].mean(axis=0)
+
+
+def _spin(state, o=0, e=None):
+    r = state.pos[o:e] - _centre(state, o, e)
+    v = state.vel[o:e]
+    return float((r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0]).sum() / (r ** 2).sum())
+
+
+def rolling(vertices: int, degrees: float = 10.0) -> float:
+    """A hard blob's acceleration down a slope (friction 1), over a ring's g sin θ / 2."""
+    th = math.radians(degrees)
+    model, state, params = _run(f"[scene]\ngravity = [{G * math.sin(th)!r}, {-G * math.cos(th)!r}]\n"
+                                f"[[blob]]\ncenter = [0.0, 0.5]\nradius = 0.5\nvertices = {vertices}\n{HARD}"
+                                "friction = 1.0\nstatic_friction = 1.0\n" + FLOOR)
+    advance(state, model, params, 60)
+    t, x = [], []
+    for k in range(120):
+        advance(state, model, params, 1)
+        t.append(k / 60)
+        x.append(_centre(state)[0])
+    return 2 * np.polyfit(t, x, 2)[0] / (G * math.sin(th) / 2)
+
+
+def spin_kept(seconds: float = 10.0) -> float:
+    """A free blob spun at 4 rad/s, damping 0, no gravity: ω after `seconds` over ω before."""
+    model, state, params = _run("[scene]\ngravity = [0.0, 0.0]\ndamping = 0.0\n"
+                                "[[blob]]\ncenter = [0.0, 0.0]\nradius = 0.5\nangular_velocity = 4.0\n")
+    before = _spin(state)
+    advance(state, model, params, round(seconds * 60))
+    return _spin(state) / before
+
+
+def _drop(restitution, substeps, iterations, height, damping, pressure, radius, seconds):
+    """(rest height of the centre, the centre's peaks after it first turned upward)."""
+    def text(y):
+        return (f"[scene]\nsubsteps = {substeps}\niterations = {iterations}\ndamping = {damping}\n"
+                f"[[blob]]\ncenter = [0.0, {y}]\nradius = {radius}\npressure = {pressure}\ncompliance = 1e-6\n"
+                f"restitution = {restitution}\n" + FLOOR)
+    model, state, params = _run(text(radius * 1.1))
+    advance(state, model, params, 120)
+    rest = float(_centre(state)[1])
+    model, state, params = _run(text(rest + height))
+    heights, rising = [], False
+    for _ in range(round(seconds * 60)):
+        advance(state, model, params, 1)
+        rising = rising or state.vel[:, 1].mean() > 0
+        if rising:
+            heights.append(_centre(state)[1])
+    y = np.array(heights)
+    return rest, y[1:-1][(y[1:-1] >= y[:-2]) & (y[1:-1] > y[2:])]
+
+
+def rebound(restitution: float, substeps: int, iterations: int) -> float:
+    """A hard blob dropped 1.4 m: its first rebound over the drop."""
+    rest, peaks = _drop(restitution, substeps, iterations, 1.4, 2.0, 1.1, 0.5, 2.5)
+    return float(max(peaks[0] - rest, 0.0) / 1.4) if len(peaks) else 0.0
+
+
+def highest_bounce(substeps: int, iterations: int) -> float:
+    """A stiff blob (pressure 1.2), e = 1, damping 0, dropped 1.7 m: its highest peak over the drop."""
+    rest, peaks = _drop(1.0, substeps, iterations, 1.7, 0.0, 1.2, 0.3, 8.0)
+    return float((peaks.max() - rest) / 1.7)
+
+
+def head_on(restitution: float, hard: bool = True, radius: float = 0.4, steps: int = 90):
+    """Two blobs meeting head-on at 3 m/s each: (parting speed over approach speed, worst distance
+    of a blob's centre from the axis in m, worst vertex mirror error in m)."""
+    th = 2 * np.pi * np.arange(32) / 32
+    a = np.stack([-1 + radius * np.cos(th), radius * np.sin(th)], axis=1)
+    b = (a * [-1, 1])[::-1]
+
+    def points(p):
+        return "[" + ", ".join(f"[{float(x)!r}, {float(y)!r}]" for x, y in p) + "]"
+    extra = f"restitution = {restitution}\n" + (HARD if hard else "")
+    model, state, params = _run(f"[scene]\ngravity = [0.0, 0.0]\n[[blob]]\npoints = {points(a)}\n"
+                                f"velocity = [3.0, 0.0]\n{extra}[[blob]]\npoints = {points(b)}\n"
+                                f"velocity = [-3.0, 0.0]\n{extra}")
+    axis = mirror = 0.0
+    for _ in range(steps):
+        advance(state, model, params, 1)
+        axis = max(axis, abs(_centre(state, 0, 32)[1]), abs(_centre(state, 32)[1]))
+        mirror = max(mirror, float(np.abs(state.pos[:32] - (state.pos[32:] * [-1, 1])[::-1]).max()))
+    parting = state.vel[32:, 0].mean() - state.vel[:32, 0].mean()
+    return float(parting / 6.0), axis, mirror
+
+
+def dropped_straight(seconds: float = 30.0) -> float:
+    """A default r = 1 m blob dropped 0.2 m onto a level floor: its worst distance from the axis (m)."""
+    model, state, params = _run("[[blob]]\ncenter = [0.0, 1.2]\nradius = 1.0\n" + FLOOR)
+    worst = 0.0
+    for _ in range(round(seconds * 2)):
+        advance(state, model, params, 30)
+        worst = max(worst, abs(float(_centre(state)[0])))
+    return worst
+
+
+def main() -> None:
+    print("case | physics says | blobsim")
+    for n in (32, 64, 128):
+        print(f"hard blob rolling down 10°, {n} vertices | g sin θ / 2 | {rolling(n):.3f} of it")
+    print(f"free spin 4 rad/s, damping 0, 10 s | kept | {spin_kept():.12f} of it")
+    for s, i in ((4, 2), (16, 4), (32, 8)):
+        print(f"stiff blob, e = 1, damping 0, {s} × {i}: highest bounce | ≤ drop | {highest_bounce(s, i):.4f} of it")
+    for e in (0.0, 0.5, 1.0):
+        print(f"hard blob dropped 1.4 m, e = {e} | rebound ≈ e² = {e * e:.2f} | "
+              f"{rebound(e, 4, 2):.3f} at 4 × 2, {rebound(e, 16, 4):.3f} at 16 × 4")
+    for e in (1.0, 0.0):
+        parting, axis, _ = head_on(e)
+        print(f"hard blobs head-on, e = {e} | part at ≈ {e:.0f} × approach | {parting:.3f}")
+    _, axis, mirror = head_on(0.0, hard=False)
+    print(f"default blobs head-on (r = 0.4 m) | stay on the axis | {axis * 1e3:.3f} mm off it, "
+          f"vertices mirrored within {mirror * 1e3:.2f} mm")
+    print(f"default r = 1 m blob dropped straight, 30 s | stays centred | {dropped_straight() * 1e3:.2g} mm off")
+
+
+if __name__ == "__main__":
+    main()
