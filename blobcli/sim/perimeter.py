@@ -45,6 +45,7 @@ def edge_step(pos, i, j, rest, lam, alpha, inv_weight):
     return scale * dx, scale * dy
 
 
+TOTAL_STEP = 0.2  # the total-length step moves no vertex more than this × a mean rest edge
 SWEEPS = 2  # Jacobi passes per iteration: a Jacobi pass converges about half as fast as a Gauss-Seidel one
 
 
@@ -92,18 +93,26 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b):
     Σ m_i Δx_i = Δλ Σ (t_{i-1} - t_i) = 0: momentum is unchanged; C is a sum over the ring,
     so it has no order and keeps mirror symmetry."""
     C = -rest
-    weight = 0.0
+    weight = steepest = 0.0
     tx0, ty0, _ = _unit(pos[0, o] - pos[0, e - 1], pos[1, o] - pos[1, e - 1])
     tx, ty = tx0, ty0  # t_{i-1}
     for i in range(o, e):
         j = i + 1 if i + 1 < e else o
         ux, uy, length = _unit(pos[0, j] - pos[0, i], pos[1, j] - pos[1, i])
         C += length
-        weight += inv_mass[i] * ((tx - ux) ** 2 + (ty - uy) ** 2)
+        g2 = (tx - ux) ** 2 + (ty - uy) ** 2
+        weight += inv_mass[i] * g2
+        steepest = max(steepest, inv_mass[i] * math.sqrt(g2))
         tx, ty = ux, uy
     if weight + alpha == 0.0:
         return
     dlam = (-C - alpha * lam[b]) / (weight + alpha)
+    # C is far from linear where the ring turns sharply (∇C concentrates there): a full step
+    # overshot and blew up an over-pressured blob (pressure 2) landing on a floor. So no
+    # vertex moves more than TOTAL_STEP of a mean rest edge per step (a trust region).
+    most = TOTAL_STEP * rest / (e - o)
+    if abs(dlam) * steepest > most:
+        dlam = math.copysign(most / steepest, dlam)
     lam[b] += dlam
     # Δx_i needs t_{i-1} and t_i at the positions C was measured at: x_i moves after t_i is read.
     tx, ty = tx0, ty0

@@ -11,6 +11,7 @@
 #include <math.h>
 
 #define SWEEPS 2
+#define TOTAL_STEP 0.2
 #define NO_BOUNCE (-INFINITY)
 
 /* Python's max(a, b) and min(a, b): the first argument unless the second is strictly beyond it */
@@ -69,19 +70,23 @@ static void perimeter(double *x, double *y, const double *w, long o, long e, con
     }
     /* the total length */
     double talpha = compliance * (double)(e - o) / (h * h);
-    double C = -rest_total, weight = 0.0, tx0, ty0, tx, ty, ux, uy;
+    double C = -rest_total, weight = 0.0, steepest = 0.0, tx0, ty0, tx, ty, ux, uy;
     unit(x[o] - x[e - 1], y[o] - y[e - 1], &tx0, &ty0);
     tx = tx0;
     ty = ty0;
     for (long i = o; i < e; i++) {
         long j = i + 1 < e ? i + 1 : o;
         C += unit(x[j] - x[i], y[j] - y[i], &ux, &uy);
-        weight += w[i] * ((tx - ux) * (tx - ux) + (ty - uy) * (ty - uy));
+        double g2 = (tx - ux) * (tx - ux) + (ty - uy) * (ty - uy);
+        weight += w[i] * g2;
+        steepest = py_max(steepest, w[i] * sqrt(g2));
         tx = ux;
         ty = uy;
     }
     if (weight + talpha == 0.0) return;
     double dlam = (-C - talpha * *total_lam) / (weight + talpha);
+    double most = TOTAL_STEP * rest_total / (double)(e - o);
+    if (fabs(dlam) * steepest > most) dlam = copysign(most / steepest, dlam);
     *total_lam += dlam;
     tx = tx0;
     ty = ty0;
