@@ -55,7 +55,7 @@ import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
-from .ring import next_in_ring, ring_contains
+from .ring import next_in_ring, ring_contains, ring_means
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
@@ -546,12 +546,8 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blo
 @inline_kernel
 def _centre_motion(pos, vel, o, e):
     """Centre, centre velocity and kinetic energy per unit mass (½ mean |v|²) of ring o..e."""
-    cx = cy = vx = vy = k = 0.0
+    cx, cy, vx, vy = ring_means(pos, vel, o, e)
+    k = 0.0
     for i in range(o, e):
-        cx += pos[0, i]
-        cy += pos[1, i]
-        vx += vel[0, i]
-        vy += vel[1, i]
         k += vel[0, i] ** 2 + vel[1, i] ** 2
-    n = e - o
-    return (cx / n, cy / n), (vx / n, vy / n), 0.5 * k / n
+    return (cx, cy), (vx, vy), 0.5 * k / (e - o)

@@ -10,6 +10,7 @@ import math
 import numba
 
 from ..jit import inline_kernel, stage_kernel
+from .ring import ring_means
 
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter) ...
 MIN_REST_SPEED = 0.01  # m/s ... nor below this (without gravity, jitter from pushing overlaps apart)
@@ -23,14 +24,7 @@ def rigid_motion(pos, vel, o, e):
     so c is the centre of mass, and v_c + ω ẑ × r is the least-squares (kinetic-energy) fit:
     ∂/∂v_c Σ |v - v_c - ω ẑ × r|² = 0 gives the mean (Σ r = 0), ∂/∂ω gives ω I = L. The residual
     v - v_c - ω ẑ × r, the deformation, carries neither momentum nor angular momentum."""
-    n = e - o
-    cx = cy = vx = vy = 0.0
-    for i in range(o, e):
-        cx += pos[0, i]
-        cy += pos[1, i]
-        vx += vel[0, i]
-        vy += vel[1, i]
-    cx, cy, vx, vy = cx / n, cy / n, vx / n, vy / n
+    cx, cy, vx, vy = ring_means(pos, vel, o, e)
     L = I = 0.0
     for i in range(o, e):
         rx, ry = pos[0, i] - cx, pos[1, i] - cy
@@ -106,14 +100,7 @@ def update_velocities(pos, prev, offsets, vel, contact_normal, contact_depth, co
     inv_h = 1.0 / h
     for b in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[b], offsets[b + 1]
-        n = e - o
-        cx = cy = px = py = 0.0
-        for i in range(o, e):
-            cx += pos[0, i]
-            cy += pos[1, i]
-            px += prev[0, i]
-            py += prev[1, i]
-        cx, cy, px, py = cx / n, cy / n, px / n, py / n
+        cx, cy, px, py = ring_means(pos, prev, o, e)
         cross = dot = 0.0
         for i in range(o, e):
             rx, ry, qx, qy = pos[0, i] - cx, pos[1, i] - cy, prev[0, i] - px, prev[1, i] - py

@@ -14,6 +14,19 @@ def next_in_ring(i, o, e):
 
 
 @inline_kernel
+def ring_means(a, b, o, e):
+    """The means over ring o..e of two (2, N) arrays (positions, velocities): (ā_x, ā_y, b̄_x, b̄_y)."""
+    ax = ay = bx = by = 0.0
+    for i in range(o, e):
+        ax += a[0, i]
+        ay += a[1, i]
+        bx += b[0, i]
+        by += b[1, i]
+    n = e - o
+    return ax / n, ay / n, bx / n, by / n
+
+
+@inline_kernel
 def twice_ring_area(pos, o, e):
     """2A = Σ (x_i y_{i+1} − x_{i+1} y_i) of the ring pos[o:e], summed in ring order."""
     twice_area = 0.0
