@@ -2,7 +2,9 @@
 
 Position-based dynamics (Müller et al. 2007; XPBD small steps, Macklin et al. 2019):
 each substep of length h predicts x* = x + h v + h² g (symplectic Euler), lets the
-constraint stages move x*, and then reads the velocity back as v = (x - x_prev) / h.
+constraint stages move x*, and then reads the velocity back from x - x_prev. The rigid part
+of the motion (translation and rotation about the centre) is predicted and read back exactly
+(`predict`, `update_velocities`); restitution is the blobs' (`bounce`).
 """
 
 import math
@@ -133,7 +135,6 @@ def update_velocities(pos, prev, offsets, vel, contact_normal, contact_depth, co
         vel[1, i] = vty + vn * ny
 
 
-
 @inline_kernel
 def bounce(record, k, approach, energy, potential, potential_now, u, other, e, rest_speed):
     """One substep of a contact's restitution rule along its normal, for record[k] = (V, E, K, P)
@@ -142,20 +143,21 @@ def bounce(record, k, approach, energy, potential, potential_now, u, other, e, r
     V is the contact's fastest approach so far, read before the substep's constraints
     (`approach`): after them a hard blob has already stopped, and what is left depends on the
     substeps and iterations, not on e. K and P are the kinetic and potential energy (per unit
-    of the normal's mass) then (`energy`, `potential`; P_now after the solve). Once the solve leaves the bodies no
-    longer approaching (u >= 0), they bounce: u is set to e V', up for a hard blob that stopped
-    dead, down for a soft one whose own recoil would leave faster. V'² = V² + 2 (P - P_now) is
+    of the normal's mass) then (`energy`, `potential`; P_now after the solve). Once the solve
+    leaves the bodies no longer approaching (u >= 0), they bounce: u is set to e V', up for a
+    hard blob that stopped dead, down for a soft one whose own recoil would leave faster.
+    V'² = V² + 2 (P - P_now) is
     the impact speed that the fall while squashing adds (coarse substeps squash a hard blob,
     which would otherwise rebound from lower), so the rebound is about e² of the fall whatever
     the step. Never more kinetic energy than came in: the solve has turned some into vibration
-    (`other`: the kinetic energy besides ½ u²), so ½ u² <= K + P - P_now - other. `leave` keeps
-    the energy E = ½ u² + P_now it left with (-∞ before the bounce), and while the contact lasts
-    u is never raised again (that would cancel gravity) nor let above √(2 (E - P_now)): the
-    blob's recoil, pushing it up or on, would add energy. So no bounce goes
-    higher than the drop. The record outlives the contact: a vibrating blob that has bounced
-    touches again on its way up, and those touches, inelastic for the vertex, would turn
-    vibration into lift. A new impact starts when the bodies approach faster than rest_speed
-    after a bounce (or faster than V before it); slower approaches never bounce (resting)."""
+    (`other`: the kinetic energy besides ½ u²), so ½ u² <= K + P - P_now - other. E keeps the
+    energy ½ u² + P_now it left with (-∞ before the bounce), and while the contact lasts u is
+    never raised again (that would cancel gravity) nor let above √(2 (E - P_now)): the blob's
+    recoil, pushing it up or on, would add energy. So no bounce goes higher than the drop. The
+    record outlives the contact: a vibrating blob that has bounced touches again on its way up,
+    and those touches, inelastic for the vertex, would turn vibration into lift. A new impact
+    starts when the bodies approach faster than rest_speed after a bounce (or faster than V
+    before it); slower approaches never bounce (resting)."""
     if approach > (rest_speed if record[k, 1] != NO_BOUNCE else record[k, 0]):
         record[k, 0], record[k, 1], record[k, 2], record[k, 3] = approach, NO_BOUNCE, energy, potential
     V = record[k, 0]
