@@ -55,7 +55,7 @@ import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
-from .ring import next_in_ring, ring_contains, ring_means
+from .ring import centre_motion, next_in_ring, ring_contains
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
@@ -517,8 +517,8 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blo
             continue
         ma, mb = (ea - oa) / inv_mass[oa], (eb - ob) / inv_mass[ob]
         mu = ma * mb / (ma + mb)
-        ca, va, ka = _centre_motion(pos, vel, oa, ea)
-        cb, vb, kb = _centre_motion(pos, vel, ob, eb)
+        ca, va, ka = centre_motion(pos, vel, oa, ea)
+        cb, vb, kb = centre_motion(pos, vel, ob, eb)
         nx, ny = cb[0] - ca[0], cb[1] - ca[1]
         length = math.sqrt(nx * nx + ny * ny)
         if length == 0.0:
@@ -542,12 +542,3 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blo
                 vel[0, p] += du * ma / (ma + mb) * nx
                 vel[1, p] += du * ma / (ma + mb) * ny
 
-
-@inline_kernel
-def _centre_motion(pos, vel, o, e):
-    """Centre, centre velocity and kinetic energy per unit mass (½ mean |v|²) of ring o..e."""
-    cx, cy, vx, vy = ring_means(pos, vel, o, e)
-    k = 0.0
-    for i in range(o, e):
-        k += vel[0, i] ** 2 + vel[1, i] ** 2
-    return (cx, cy), (vx, vy), 0.5 * k / (e - o)

@@ -27,6 +27,17 @@ def ring_means(a, b, o, e):
 
 
 @inline_kernel
+def centre_motion(pos, vel, o, e):
+    """Centre, centre velocity and kinetic energy per unit mass (½ mean |v|²) of ring o..e
+    (vertex masses are equal within a blob)."""
+    cx, cy, vx, vy = ring_means(pos, vel, o, e)
+    k = 0.0
+    for i in range(o, e):
+        k += vel[0, i] ** 2 + vel[1, i] ** 2
+    return (cx, cy), (vx, vy), 0.5 * k / (e - o)
+
+
+@inline_kernel
 def twice_ring_area(pos, o, e):
     """2A = Σ (x_i y_{i+1} − x_{i+1} y_i) of the ring pos[o:e], summed in ring order."""
     twice_area = 0.0

@@ -225,7 +225,7 @@ def measure_one_blob_step(repeats: int) -> dict:
 
 
 def measure_core(blobs: int, steps: int) -> dict:
-    """The core substep (predict, perimeter, area, floor, velocities) of blobs apart on a floor,
+    """The core substep (CORE_STAGES; the floor is the statics stage) of blobs apart on a floor,
     taken from the real step's stage clock; the blob-blob stages and damping are not counted."""
     per_step, _, (model, params) = _profile(scene_text(blobs, "apart"), "bench-core", 0, steps)
     sec = sum(per_step.get(k, 0.0) for k in CORE_STAGES) / params.substeps
@@ -415,7 +415,7 @@ def format_bench(r: dict) -> str:
     rows = {(x["layout"], x["blobs"]): x for x in r["rows"]}
     lines.append("")
     c = r["core"]
-    lines.append(f"core substep (predict, perimeter, area, floor, velocities) at {c['blobs']} blobs: "
+    lines.append(f"core substep ({', '.join(CORE_STAGES)}) at {c['blobs']} blobs: "
                  f"{c['ns_per_vertex_substep']:.1f} ns/vertex-substep "
                  f"(target <= {t['core_ns_per_vertex_substep_1000']:g})")
     lines.append(f"one-blob step at the defaults: {r['one_blob']['us_per_step']:.2f} µs "
