@@ -47,6 +47,9 @@ SPIN_KEPT = 1e-9  # relative: a free blob's spin after 10 s at damping 0 (exact 
 ROLL_32 = 0.85  # a hard blob rolling down 10°, as a fraction of a ring's g sin θ / 2: at least this at 32 vertices
 ROLL_128 = 0.85  # ... and at 128 (issue 11 asks 0.90: measured 0.893, not met; see docs/physics.md)
 ROLL_SLIDE = 0.05  # ... and not above 1 by more than this (it would be sliding, not rolling)
+PILE_REST_CENTRE = 2e-3  # m/s: fastest blob centre of a settled pile with sleeping off (issue 12's target) ...
+PILE_REST_VERTEX = 20e-3  # m/s: ... and fastest vertex
+PILE_ASLEEP = 0.9  # share of a settled pile's blobs asleep with sleeping on (the default)
 COMPARE_REPORT = 1e-12  # m: a deviation `compare` reports vs the one planted in the file
 
 

@@ -20,7 +20,7 @@ def project(points, target, inv_mass=None):
     pos = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (2, n), as the kernels read it
     n = pos.shape[1]
     inv_mass = np.ones(n) if inv_mass is None else inv_mass
-    area_kot(pos, inv_mass, np.array([0, n], dtype=np.int64), np.array([target]))
+    area_kot(pos, inv_mass, np.array([0, n], dtype=np.int64), np.ones(1, np.uint8), np.array([target]))
     return pos.T
 
 

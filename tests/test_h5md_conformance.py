@@ -70,7 +70,7 @@ def test_every_unit_is_in_the_units_grammar_and_the_module_is_declared(trajector
 
 def test_time_dependent_elements_and_the_box(trajectory):
     with h5py.File(trajectory) as f:
-        for name in ("particles/blobs/position", "observables/area", "observables/kinetic_energy"):
+        for name in ("particles/blobs/position", "observables/area", "observables/kinetic_energy", "observables/awake"):
             g = f[name]
             frames = g["value"].shape[0]
             assert g["step"].dtype.kind == "i" and g["step"].shape == (frames,)
@@ -105,7 +105,7 @@ def test_format_1_files_are_still_read_but_not_resumed(tmp_path):
         assert cli(*args)[0] == 0, args
     scene = Path(__file__).parent.parent / "scenes" / "gish.toml"
     code, _, err = cli("run", scene, "--resume", old, "--steps", 300, "-q")
-    assert code == 2 and "resuming needs format 3" in err, err
+    assert code == 2 and "resuming needs format 4" in err, err
 
 
 def test_h5dump_reads_the_file(trajectory):

@@ -136,6 +136,8 @@ def test_internal_stages_conserve_momentum():
 
 def test_blob_dropped_on_floor_comes_to_rest_without_jitter_or_creep():
     text = """
+[scene]
+sleep = false
 [[blob]]
 center = [0.0, 1.2]
 radius = 0.5

@@ -25,11 +25,12 @@ import numpy as np
 from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 3
-READS_FORMATS = (1, 2, 3)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
-#                            formats 1 and 2 store impact_speed in /restart (not resumable by this blobsim)
+FORMAT_VERSION = 4
+READS_FORMATS = (1, 2, 3, 4)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
+#                               formats 1 and 2 store impact_speed in /restart; formats 1-3 have no sleeping
+#                               (no /observables/awake: every blob was awake) and are not resumable by this blobsim
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 3, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 4, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
@@ -47,13 +48,15 @@ LAYOUT = """\
 /observables
     area/{value,step,time}            value float64 [frames, blobs]  unit "m+2" (positive)
     kinetic_energy/{value,step,time}  value float64 [frames, blobs]  unit "J"
+    awake/{value,step,time}           value uint8 [frames, blobs]: 1 awake, 0 asleep (frozen, not simulated)
 /parameters
     blob_offsets             int64 [blobs + 1]: blob b owns vertices offsets[b]:offsets[b+1]
     blob_names               str   [blobs]
     target_area              float64 [blobs]  (m²)
     mass                     float64 [blobs]  (kg)
     scene                    str: the scene's TOML text
-      attrs: dt, substeps, iterations, method, damping, gravity, steps, every, source,
+      attrs: dt, substeps, iterations, method, damping, gravity, sleep, sleep_speed, time_to_sleep, steps,
+             every, source,
              blobsim_version, python, numpy, numba, llvmlite, h5py, hdf5, platform, machine,
              numba_threads, env_NUMBA_NUM_THREADS, env_OMP_NUM_THREADS, env_OPENBLAS_NUM_THREADS,
              env_PYTHONHASHSEED
@@ -64,12 +67,15 @@ LAYOUT = """\
                              energy it came with (J/kg)
     pair_key                 int64 [pairs]: blob pairs a < b with an impact record, as a × blobs + b, sorted
     pair_impact              float64 [pairs, 4]: their impact records, as impact's
+    awake                    uint8 [blobs]: 1 awake, 0 asleep
+    still                    float64 [blobs]: how long each awake blob has been at rest (s)
       attrs: step
 """
 POSITION = "particles/blobs/position"
 AREA = "observables/area"
 KINETIC = "observables/kinetic_energy"
-SERIES = (POSITION, AREA, KINETIC)
+AWAKE = "observables/awake"
+SERIES = (POSITION, AREA, KINETIC, AWAKE)
 PARAMETERS = "parameters"
 RESTART = "restart"
 BLOCK_BYTES = 4 << 20  # frames per block: about this many bytes of positions
@@ -156,6 +162,7 @@ class TrajectoryWriter:
         obs = f.create_group("observables")
         self.area = _series(obs, "area", (b,), unit="m+2", chunk=self.block)
         self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
+        self.awake = _series(obs, "awake", (b,), dtype=np.uint8, chunk=self.block)
 
         p = f.create_group(PARAMETERS)
         p.create_dataset("blob_offsets", data=model.offsets)
@@ -164,7 +171,9 @@ class TrajectoryWriter:
         p.create_dataset("mass", data=model.mass)
         p.create_dataset("scene", data=scene.text, dtype=h5py.string_dtype())
         attrs = dict(dt=params.dt, substeps=params.substeps, iterations=params.iterations, method=params.method,
-                     damping=params.damping, gravity=params.gravity, steps=params.steps, every=params.every,
+                     damping=params.damping, gravity=params.gravity, sleep=params.sleep,
+                     sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep, steps=params.steps,
+                     every=params.every,
                      source=scene.source, **versions())
         for k, v in attrs.items():
             p.attrs[k] = v
@@ -174,12 +183,14 @@ class TrajectoryWriter:
         self._pos = np.empty((self.block, n, 2))
         self._area = np.empty((self.block, b))
         self._kinetic = np.empty((self.block, b))
+        self._awake = np.empty((self.block, b), np.uint8)
         self._last_vel = np.empty((n, 2))
         self._last_impact = np.empty((b, 4))
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
+        self._last_still = np.empty(b)
         self._count = 0
         self._last_flush = time.monotonic()
-        self._frame_bytes = 8 * (2 * n + 2 * b) + 16
+        self._frame_bytes = 8 * (2 * n + 2 * b) + b + 16
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
@@ -189,7 +200,9 @@ class TrajectoryWriter:
         self._pos[k] = state.pos
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
+        self._awake[k] = state.awake
         self._last_vel[...] = state.vel
+        self._last_still[...] = state.still
         self._last_impact[...] = state.impact
         self._last_pairs = restart_pairs(state)
         self._count = k + 1
@@ -208,21 +221,22 @@ class TrajectoryWriter:
         steps = self._steps[:k]
         start, stop = self.frames, self.frames + k
         for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
-                              (self.kinetic, self._kinetic[:k])):
+                              (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k])):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, self._last_pairs, steps[-1])
+        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, self._last_pairs, self._awake[k - 1],
+                            self._last_still, steps[-1])
         self.frames = stop
         self._count = 0
         self.file.flush()
         self._last_flush = time.monotonic()
 
-    def _write_restart(self, position, velocity, impact, pairs, step):
+    def _write_restart(self, position, velocity, impact, pairs, awake, still, step):
         restart = self.file.require_group(RESTART)
         for name, data in (("position", position), ("velocity", velocity), ("impact", impact),
-                           ("pair_key", pairs[0]), ("pair_impact", pairs[1])):
+                           ("pair_key", pairs[0]), ("pair_impact", pairs[1]), ("awake", awake), ("still", still)):
             if name not in restart:  # the pair records change length: resizable along axis 0
                 restart.create_dataset(name, data=data, maxshape=(None, *data.shape[1:]), chunks=True)
             else:
@@ -244,7 +258,8 @@ class TrajectoryWriter:
                 if stop_requested():
                     return None
                 stop = min(start + self.block, keep)
-                for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC)):
+                for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC),
+                                    (self.awake, AWAKE)):
                     for key in ("value", "step", "time"):
                         ds = group[key]
                         ds.resize(self.frames + stop - start, axis=0)
@@ -260,9 +275,12 @@ class TrajectoryWriter:
             state.pair_key[:len(keys)] = keys
             state.pair_impact[:len(keys)] = restart["pair_impact"][...]
             state.pair_count[0] = len(keys)
+            state.awake[...] = restart["awake"][...]
+            state.still[...] = restart["still"][...]
             # The restart state goes with the frames at once: a file resumed and stopped before
             # its next recorded frame must still be resumable.
-            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), step)
+            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), state.awake, state.still,
+                                step)
             self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
         self.file.flush()
         return step
@@ -352,6 +370,9 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
                                (f"{p}/blob_names", (b,), "OSU"), (f"{p}/target_area", (b,), "f"),
                                (f"{p}/mass", (b,), "f"), (f"{p}/scene", (), "OSU")):
         problems.append(_shape_problem(f, name, shape, kinds))
+    if version >= 4:
+        problems += [_shape_problem(f, f"{AWAKE}/value", (frames, b), "u"),
+                     _shape_problem(f, f"{AWAKE}/step", (frames,), "iu")]
     if frames == 0:
         problems.append("it holds no frames")
     for key in ("dt", "substeps", "iterations", "method", "every", "steps"):
@@ -359,15 +380,16 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
             problems.append(f"{p} attribute {key} is missing")
     if "dt" in f[p].attrs and not (np.isfinite(f[p].attrs["dt"]) and f[p].attrs["dt"] > 0):
         problems.append(f"{p} attribute dt is not a positive number")
-    if need_restart and version < 3:
-        problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 3): "
+    if need_restart and version < 4:
+        problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 4): "
                         "run it again")
-    elif need_restart or RESTART in f and version >= 3:
+    elif need_restart or RESTART in f and version >= 4:
         pairs = f[f"{RESTART}/pair_key"].shape[0] if f"{RESTART}/pair_key" in f else 0
         problems += [_shape_problem(f, f"{RESTART}/position", (n, 2)), _shape_problem(f, f"{RESTART}/velocity", (n, 2)),
                      _shape_problem(f, f"{RESTART}/impact", (b, 4)),
                      _shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
-                     _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4))]
+                     _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4)),
+                     _shape_problem(f, f"{RESTART}/awake", (b,), "u"), _shape_problem(f, f"{RESTART}/still", (b,))]
         if RESTART in f and "step" not in f[RESTART].attrs:
             problems.append(f"{RESTART} attribute step is missing")
     return [x for x in problems if x]
@@ -519,6 +541,7 @@ class Trajectory:
     names: list
     area: np.ndarray  # (frames, B)
     kinetic_energy: np.ndarray  # (frames, B)
+    awake: np.ndarray  # (frames, B) uint8: 1 awake, 0 asleep (all 1 in formats 1-3, which had no sleeping)
     target_area: np.ndarray  # (B,)
     mass: np.ndarray  # (B,) kg
     complete: bool
@@ -534,5 +557,6 @@ def read_trajectory(path: str | Path) -> Trajectory:
         return Trajectory(position=pos["value"][...], step=pos["step"][...], time=pos["time"][...],
                           offsets=p["blob_offsets"][...], names=[text(s) for s in p["blob_names"][...]],
                           area=f[AREA]["value"][...], kinetic_energy=f[KINETIC]["value"][...],
+                          awake=f[AWAKE]["value"][...] if AWAKE in f else np.ones(f[AREA]["value"].shape, np.uint8),
                           target_area=p["target_area"][...], mass=p["mass"][...], complete=bool(f.attrs["complete"]),
                           attrs=dict(p.attrs), scene=text(p["scene"][()]))

@@ -2,7 +2,8 @@
 
 Layout of a recording (timelines `step`, a sequence, and `sim_time`, a duration in s):
 
-    world/blobs              LineStrips2D: one closed strip per blob, one stable colour per blob
+    world/blobs              LineStrips2D: one closed strip per blob, one stable colour per blob (grey while
+                             it sleeps)
     world/vertices           Points2D: every vertex
     world/statics/<i>        the static colliders, logged once as static data
     series/area_error        Scalars: one series per blob, (|A| - A_target) / A_target
@@ -34,6 +35,7 @@ from ..colliders import COLLIDERS
 BATCH_FRAMES = 64  # frames per send_columns call
 LEGEND_BLOBS = 8  # per-blob legends are shown up to this many blobs
 Y_UP = [1.0, -1.0, 1.0]  # the scale that draws physics' y-up in rerun's y-down 2D views
+SLEEPING_GREY = [150, 150, 150, 255]  # the colour of a sleeping blob (RGBA)
 
 
 def blob_colors(count: int) -> np.ndarray:
@@ -103,12 +105,13 @@ class RerunRecorder:
                             ("kinetic_energy/total", [230, 180, 60])):
             self.rec.log(f"series/summary/{path}", rr.SeriesLines(names=[path.split("/")[1]], colors=[color]),
                          static=True)
-        self._steps, self._pos, self._area_error, self._kinetic = [], [], [], []
+        self._steps, self._pos, self._area_error, self._kinetic, self._awake = [], [], [], [], []
         self.frames = 0
 
-    def append(self, step: int, pos, area, kinetic):
-        """Buffer one frame: positions (N, 2), signed or positive areas (B,), kinetic energy (B,)."""
+    def append(self, step: int, pos, area, kinetic, awake):
+        """Buffer one frame: positions (N, 2), signed or positive areas (B,), kinetic energy (B,), awake (B,)."""
         self._steps.append(step)
+        self._awake.append(np.asarray(awake, dtype=bool))
         self._pos.append(np.asarray(pos, dtype=np.float32))
         self._area_error.append((np.abs(area) - self.target) / self.target)
         self._kinetic.append(np.asarray(kinetic, dtype=np.float64))
@@ -125,7 +128,8 @@ class RerunRecorder:
         pos = np.stack(self._pos)  # (F, N, 2)
         strips = [s for frame in pos for s in np.split(frame[self.closed], self.strip_ends)]
         self.rec.send_columns("world/blobs", indexes=times, columns=rr.LineStrips2D.columns(
-            strips=strips, colors=np.tile(self.colors, (frames, 1))).partition([blobs] * frames))
+            strips=strips, colors=np.where(np.concatenate(self._awake)[:, None], np.tile(self.colors, (frames, 1)),
+                                           np.uint8(SLEEPING_GREY))).partition([blobs] * frames))
         self.rec.send_columns("world/vertices", indexes=times, columns=rr.Points2D.columns(
             positions=pos.reshape(-1, 2), radii=np.full(pos.shape[0] * pos.shape[1], 0.008, np.float32)).partition(
             [pos.shape[1]] * frames))
@@ -138,7 +142,7 @@ class RerunRecorder:
                              ("kinetic_energy/total", kinetic.sum(axis=1))):
             self.rec.send_columns(f"series/summary/{path}", indexes=times, columns=rr.Scalars.columns(scalars=values))
         self.frames += frames
-        self._steps, self._pos, self._area_error, self._kinetic = [], [], [], []
+        self._steps, self._pos, self._area_error, self._kinetic, self._awake = [], [], [], [], []
 
     def close(self):
         self.flush()
@@ -148,12 +152,13 @@ class RerunRecorder:
 
 def replay(h5_path, rrd_path) -> int:
     """Write the recording of an existing trajectory file, without simulating. Returns frames."""
-    from .h5md import AREA, KINETIC, PARAMETERS, POSITION, open_trajectory, reading, stored_scene, text
+    from .h5md import AREA, AWAKE, KINETIC, PARAMETERS, POSITION, open_trajectory, reading, stored_scene, text
     with open_trajectory(h5_path) as f, reading(h5_path):
         p = f[PARAMETERS]
         scene = stored_scene(f, h5_path)
         pos = f[POSITION]
         area, kinetic = f[AREA]["value"], f[KINETIC]["value"]
+        awake = f[AWAKE]["value"] if AWAKE in f else np.ones(area.shape, np.uint8)  # formats 1-3: no sleeping
         steps = pos["step"][...]
         reach = np.array([[np.inf, np.inf], [-np.inf, -np.inf]])
         for start in range(0, len(steps), BATCH_FRAMES):  # where the blobs go, to frame the view on
@@ -168,9 +173,9 @@ def replay(h5_path, rrd_path) -> int:
         try:
             for start in range(0, len(steps), BATCH_FRAMES):
                 stop = min(start + BATCH_FRAMES, len(steps))
-                block, a, k = pos["value"][start:stop], area[start:stop], kinetic[start:stop]
+                block, a, k, w = pos["value"][start:stop], area[start:stop], kinetic[start:stop], awake[start:stop]
                 for i in range(stop - start):
-                    recorder.append(int(steps[start + i]), block[i], a[i], k[i])
+                    recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i])
         finally:
             recorder.close()
         return len(steps)

@@ -109,6 +109,12 @@ class SceneSettings:
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
     damping: float = key(2.0, "1/s", "decay rate of each blob's deformation: its velocity relative to its "
                          "best-fit rigid motion (moving, spinning and rolling are not damped)", "float", nonnegative)
+    sleep: bool = key(True, "", "let islands of touching blobs at rest fall asleep: frozen exactly, not simulated, "
+                      "woken by a moving blob coming near", "bool")
+    sleep_speed: float = key(0.005, "m/s", "a blob is at rest while its centre's speed and its spin × radius stay "
+                             "below this", "float", positive)
+    time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps",
+                               "float", positive)
 
 
 @dataclass(frozen=True)
@@ -286,6 +292,10 @@ def _coerce(kind: str, v, path, problems: _Problems, unit: str = ""):
     if kind == "int":
         if isinstance(v, bool) or not isinstance(v, int):
             return bad("must be an integer")
+        return v
+    if kind == "bool":
+        if not isinstance(v, bool):
+            return bad("must be true or false")
         return v
     if kind == "float":
         if not _number(v):

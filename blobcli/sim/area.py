@@ -58,9 +58,11 @@ def _gradient_step(pos, inv_mass, o, e, scale):
 
 
 @stage_kernel
-def area_kot(pos, inv_mass, offsets, target_area):
+def area_kot(pos, inv_mass, offsets, awake, target_area):
     """Exact area projection (see the module docstring)."""
     for blob in numba.prange(offsets.shape[0] - 1):
+        if not awake[blob]:
+            continue
         o, e = offsets[blob], offsets[blob + 1]
         n = e - o
         # Pass 1: a, b, c, carrying p_i from one edge to the next.
@@ -106,12 +108,14 @@ def _area_and_gradient_norm(pos, inv_mass, o, e):
 
 
 @stage_kernel
-def area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
+def area_xpbd(pos, inv_mass, offsets, awake, target_area, compliance, lam, h):
     """The area as a compliant XPBD constraint, one linearized step per iteration."""
     # XPBD (Macklin et al. 2016) for C = A - A₀ with ∇_i C = ∇_i A:
     #   Δλ = (-C - α̃ λ) / (Σ w_i |∇_i A|² + α̃),  x_i += w_i ∇_i A Δλ,  α̃ = α / h².
     # One linearized step per call: the area converges over the iterations, not exactly.
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         area, norm = _area_and_gradient_norm(pos, inv_mass, o, e)
         alpha = compliance[b] / (h * h)
@@ -123,7 +127,7 @@ def area_xpbd(pos, inv_mass, offsets, target_area, compliance, lam, h):
 
 
 @stage_kernel
-def area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
+def area_gas(pos, inv_mass, offsets, awake, target_area, gas_pressure, scale):
     """Ideal-gas pressure force; the area settles where the skin's tension balances it."""
     # Ideal gas (Matyka 2004): P = nRT / A, here P = P₀ A₀ / A. The pressure on an edge is
     # P |e| along its outward normal, half to each end; summed at vertex i that is exactly
@@ -131,6 +135,8 @@ def area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
     # iterations: `scale` = h² / iterations), which symplectic Euler would also give.
     # The area is the true shoelace area (the 2D "volume" formula of the article is not).
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         area, _ = _area_and_gradient_norm(pos, inv_mass, o, e)
         if area * target_area[b] <= 0.0:  # turned inside out: no meaningful pressure
@@ -140,12 +146,14 @@ def area_gas(pos, inv_mass, offsets, target_area, gas_pressure, scale):
 
 
 @kernel
-def area_springs(pos, inv_mass, blob_of, pairs, rest, compliance, lam, h):
+def area_springs(pos, inv_mass, blob_of, awake, pairs, rest, compliance, lam, h):
     """No pressure: internal springs hold the shape (and can let it invert)."""
     # XPBD distance constraints, like the perimeter's, across the blob: each vertex to the
     # opposite one and to its neighbours' neighbours (Gish's and JellyCar's spring bodies).
     for s in range(pairs.shape[0]):
         i, j = pairs[s, 0], pairs[s, 1]
+        if not awake[blob_of[i]]:
+            continue
         solve_distance(pos, inv_mass, i, j, rest[s], lam, s, compliance[blob_of[i]] / (h * h))
 
 

@@ -66,8 +66,11 @@ MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thr
 
 
 @stage_kernel
-def _blob_bounds(pos, offsets, center, radius, edges):
+def _blob_bounds(pos, offsets, awake, center, radius, edges):
+    """Each awake blob's centre, radius and edge table (a sleeping blob's do not change)."""
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
         for i in range(o, e):
@@ -144,11 +147,11 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 
 
 @stage_kernel
-def find_blob_pairs(pos, offsets, center, radius, edges, blob_contact_depth):
-    """Broad phase: the pairs of blobs close enough to touch this substep, as (pairs (P, 2), each
-    blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P). Past
-    PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant)."""
-    _blob_bounds(pos, offsets, center, radius, edges)
+def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth):
+    """Broad phase: the pairs of blobs close enough to touch this substep, sleeping or not, as (pairs
+    (P, 2), each blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P).
+    Past PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant)."""
+    _blob_bounds(pos, offsets, awake, center, radius, edges)
     blob_count = offsets.shape[0] - 1
     pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
     blob_contact_depth[:] = 0.0  # this substep's contacts start empty
@@ -238,10 +241,14 @@ def _bucket(key, buckets):
 
 
 @stage_kernel
-def _deep_pairs(pos, offsets, pairs, center, radius, deep):
-    """deep[k]: either centre of pair k lies inside the other blob."""
+def _deep_pairs(pos, offsets, awake, pairs, center, radius, deep):
+    """deep[k]: either centre of pair k lies inside the other blob, both awake (one awake blob
+    deep in a sleeping one wakes its island at the end of the step, and is split from it then)."""
     for k in numba.prange(pairs.shape[0]):
         a, b = pairs[k, 0], pairs[k, 1]
+        if not (awake[a] and awake[b]):
+            deep[k] = False
+            continue
         # A centre farther from the other's centre than its radius cannot be inside it.
         d2 = (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2
         deep[k] = ((d2 <= radius[b] ** 2
@@ -251,8 +258,10 @@ def _deep_pairs(pos, offsets, pairs, center, radius, deep):
 
 
 @stage_kernel
-def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of, deep, c_edge, c_t, c_depth2):
-    """For every vertex: the edge it must leave (c_edge = -1: none), from its deepest contact.
+def _detect(pos, offsets, awake, orient, center, radius, edges, start, partner, pair_of, deep, c_edge, c_t,
+            c_depth2):
+    """For every vertex of an awake blob: the edge it must leave (c_edge = -1: none), from its deepest
+    contact. (A sleeping blob's vertices keep c_edge = -1: sleep.update_sleep clears them.)
 
     Parallel over blobs; each blob writes only its own vertices' slots, and keeps the
     deepest of its contacts, so the result does not depend on the number of threads."""
@@ -260,6 +269,8 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
     for b in range(offsets.shape[0] - 1):
         longest = max(longest, offsets[b + 1] - offsets[b])
     for A in numba.prange(offsets.shape[0] - 1):
+        if not awake[A]:
+            continue
         d2 = np.empty(longest)  # per edge of the partner: squared distance, t, normal opposes
         t = np.empty(longest)
         opposes = np.empty(longest, np.bool_)
@@ -323,7 +334,7 @@ def _detect(pos, offsets, orient, center, radius, edges, start, partner, pair_of
 
 
 @stage_kernel
-def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
+def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
@@ -340,22 +351,22 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_
     for q in range(pos.shape[1]):
         p = pos.shape[1] - 1 - q if backward else q
         if c_edge[p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[p]]]) >= 2:
-            _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+            _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
                              contact_depth, center, radius, up_x, up_y)
     for parity in range(2):
         for q in numba.prange((strips - parity) // 2):
             s = parity + 2 * q
-            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
                              contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
     for parity in range(2):
         for q in numba.prange((strips - parity + 1) // 2):
             s = parity + 2 * q
-            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
                              contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
 
 
 @inline_kernel
-def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
                      contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s; backward: each strip's in reverse order."""
@@ -368,12 +379,12 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, orient, ma
             for q in range(o, e):
                 p = o + e - 1 - q if backward else q
                 if c_edge[p] >= 0 and strip_of[blob_of[c_edge[p]]] == there:
-                    _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t,
+                    _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
                                      contact_depth, center, radius, up_x, up_y)
 
 
 @inline_kernel
-def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, contact_depth,
+def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, contact_depth,
                      center, radius, up_x, up_y):
     """Push vertex p out of its contact edge, with friction."""
     e0, t = c_edge[p], c_t[p]
@@ -383,7 +394,9 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, orient, material,
     # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
     # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
     f = ((center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y) / (radius[a] + radius[blob])
-    if f > 0.0 and we > wp:  # the vertex's blob is above and heavier
+    if not awake[blob]:  # a sleeping blob does not move (sim/sleep.py)
+        we = 0.0
+    elif f > 0.0 and we > wp:  # the vertex's blob is above and heavier
         we *= (wp / we) ** min(2.0 * f, 2.0)
     elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
         wp *= (we / wp) ** min(-2.0 * f, 2.0)
@@ -442,26 +455,26 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 
 @stage_kernel
-def detect_blob_contacts(pos, inv_mass, offsets, orient, center, radius, edges, pairs, partners, c_edge, c_t,
+def detect_blob_contacts(pos, inv_mass, offsets, awake, orient, center, radius, edges, pairs, partners, c_edge, c_t,
                          c_depth2):
     """Narrow phase: each vertex's contact (c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds(pos, offsets, center, radius, edges)
+    _blob_bounds(pos, offsets, awake, center, radius, edges)
     deep = np.empty(pairs.shape[0], dtype=np.bool_)
-    _deep_pairs(pos, offsets, pairs, center, radius, deep)
+    _deep_pairs(pos, offsets, awake, pairs, center, radius, deep)
     for k in range(pairs.shape[0]):  # rare: separate them first, in pair order
         if deep[k]:
             _separate_deep(pos, inv_mass, offsets, pairs[k, 0], pairs[k, 1], center, radius)
-    _detect(pos, offsets, orient, center, radius, edges, partners[0], partners[1], partners[2], deep, c_edge, c_t,
-            c_depth2)
+    _detect(pos, offsets, awake, orient, center, radius, edges, partners[0], partners[1], partners[2], deep, c_edge,
+            c_t, c_depth2)
 
 
 @stage_kernel
-def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth,
-                          center, radius, up_x, up_y, strips, backward):
+def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
+                          blob_contact_depth, center, radius, up_x, up_y, strips, backward):
     """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips; backward:
     in reverse order)."""
-    _resolve(pos, prev, inv_mass, offsets, blob_of, orient, material, c_edge, c_t, blob_contact_depth, center, radius,
-             up_x, up_y, strips[0], strips[1], strips[2], backward)
+    _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, blob_contact_depth, center,
+             radius, up_x, up_y, strips[0], strips[1], strips[2], backward)
 
 
 @kernel
@@ -500,8 +513,8 @@ def keep_impacts(pairs, blob_count, pair_records, keys, records, count):
 
 
 @stage_kernel
-def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blob_contact_depth, pairs, predicted,
-                     pair_records, rest_speed):
+def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, blob_contact_depth, pairs,
+                     predicted, pair_records, rest_speed):
     """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
     vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
     e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
@@ -510,6 +523,8 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, material, c_edge, blo
     +Δu m_a/(m_a + m_b) n̄: momentum is unchanged. Pairs run one after another, in pair order."""
     for k in range(pairs.shape[0]):
         a, b = pairs[k, 0], pairs[k, 1]
+        if not (awake[a] and awake[b]):  # a sleeping blob does not move (sim/sleep.py)
+            continue
         oa, ea, ob, eb = offsets[a], offsets[a + 1], offsets[b], offsets[b + 1]
         touching = False
         for p in range(oa, ea):

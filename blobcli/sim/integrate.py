@@ -36,11 +36,13 @@ def rigid_motion(pos, vel, o, e):
 
 
 @stage_kernel
-def damp_deformation(pos, vel, offsets, factor):
+def damp_deformation(pos, vel, offsets, awake, factor):
     """Decay each blob's deformation velocity by factor = exp(-damping h): v <- v_rig + (v - v_rig) f,
     with v_rig = v_c + ω ẑ × r the best-fit rigid motion (rigid_motion). Neither momentum nor
     angular momentum changes, and a blob that moves, spins or rolls rigidly is not slowed."""
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
         for i in range(o, e):
@@ -51,7 +53,7 @@ def damp_deformation(pos, vel, offsets, factor):
 
 
 @stage_kernel
-def predict(pos, prev, vel, lam, contact_depth, offsets, predicted, gx, gy, h):
+def predict(pos, prev, vel, lam, contact_depth, offsets, awake, predicted, gx, gy, h):
     """x_prev <- x; v += g h; x moves by the rigid motion exactly and by the deformation to first
     order; clear this substep's multipliers and contacts. predicted[b] = (v_c, ½ mean |v|², -g · c), the
     blob's velocity, kinetic and potential energy per unit mass before the constraints (restitution).
@@ -63,6 +65,8 @@ def predict(pos, prev, vel, lam, contact_depth, offsets, predicted, gx, gy, h):
         x <- c + h v_c + R(ωh) r + h (v - v_c - ω ẑ × r),
     which is x + h v to first order, and moves a rigid blob exactly: no edge changes length."""
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         for i in range(o, e):
             prev[0, i] = pos[0, i]
@@ -87,7 +91,7 @@ def predict(pos, prev, vel, lam, contact_depth, offsets, predicted, gx, gy, h):
 
 
 @stage_kernel
-def update_velocities(pos, prev, offsets, vel, contact_normal, contact_depth, contact_material, h):
+def update_velocities(pos, prev, offsets, awake, vel, contact_normal, contact_depth, contact_material, h):
     """v from the substep's motion, rotation read as an angle; then kinetic Coulomb friction at
     static contacts.
 
@@ -101,6 +105,8 @@ def update_velocities(pos, prev, offsets, vel, contact_normal, contact_depth, co
     Σ m v is (x - x_prev) / h's; a rigid motion is read back exactly."""
     inv_h = 1.0 / h
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         cx, cy, px, py = ring_means(pos, prev, o, e)
         cross = dot = 0.0
@@ -172,8 +178,8 @@ def bounce(record, k, approach, energy, potential, potential_now, u, other, e, r
 
 
 @stage_kernel
-def restitution(pos, vel, offsets, predicted, contact_normal, contact_depth, contact_material, impact, gx, gy,
-                rest_speed):
+def restitution(pos, vel, offsets, awake, predicted, contact_normal, contact_depth, contact_material, impact, gx,
+                gy, rest_speed):
     """Bounce off statics (the rule of `bounce`), of each blob's centre of mass.
 
     A vertex cannot bounce on its own: the perimeter and area stages average its reversed
@@ -184,6 +190,8 @@ def restitution(pos, vel, offsets, predicted, contact_normal, contact_depth, con
     it keeps as vibration. Energies here are per unit mass: ½ mean |v|².
     """
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         nx = ny = ux = uy = kinetic = cx = cy = 0.0
         e_max = 0.0  # the largest restitution among its contacts

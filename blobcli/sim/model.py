@@ -42,6 +42,9 @@ class Params:
     method: str
     steps: int
     every: int
+    sleep: bool = True  # islands at rest fall asleep (sim/sleep.py) ...
+    sleep_speed: float = 0.005  # m/s ... below this rigid speed ...
+    time_to_sleep: float = 1.0  # s ... for this long
 
 
 @dataclass(frozen=True)
@@ -136,9 +139,9 @@ class Model:
 class State(NamedTuple):
     """What changes during a step, as the kernels read it: per-vertex vectors in structure-of-arrays
     layout, (2, N) with row 0 x and row 1 y, so that a loop over vertices reads contiguous memory
-    (`pos` and `vel` are the (N, 2) views the rest of the program uses). position, velocity and
-    the impact records are the state proper (what /restart stores); the rest is scratch rewritten every
-    substep, kept here so that the per-vertex arrays are allocated once. The blob–blob pair lists
+    (`pos` and `vel` are the (N, 2) views the rest of the program uses). position, velocity,
+    the impact records and the sleep state are the state proper (what /restart stores); the rest is scratch
+    rewritten every substep, kept here so that the per-vertex arrays are allocated once. The blob–blob pair lists
     change length every substep and live inside the step (sim/pipeline.py)."""
     position: np.ndarray  # (2, N) m
     velocity: np.ndarray  # (2, N) m/s
@@ -149,6 +152,8 @@ class State(NamedTuple):
     #                     an impact, in pair_key[:pair_count[0]] ...
     pair_impact: np.ndarray  # (PAIRS_PER_BLOB B, 4) ... and their impact records, like `impact`
     pair_count: np.ndarray  # (1,) int64
+    awake: np.ndarray  # (B,) uint8: 1 awake, 0 asleep (sim/sleep.py) ...
+    still: np.ndarray  # (B,) s ... and how long each awake blob has been still
     previous: np.ndarray  # (2, N) m, positions at the start of the substep
     predicted: np.ndarray  # (B, 4) each blob's centre-of-mass velocity (m/s), kinetic and potential energy (J/kg)
     #                        before this substep's constraints
@@ -193,7 +198,8 @@ def build_params(scene: Scene) -> Params:
     s = scene.settings
     return Params(dt=s.dt, substeps=s.substeps, iterations=s.iterations,
                   gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,
-                  method=s.method, steps=scene.steps, every=scene.output.every)
+                  method=s.method, steps=scene.steps, every=scene.output.every, sleep=s.sleep,
+                  sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep)
 
 
 def build(scene: Scene) -> tuple[Model, State]:
@@ -251,12 +257,13 @@ def build(scene: Scene) -> tuple[Model, State]:
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
                   impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),
                   pair_impact=no_impact(PAIRS_PER_BLOB * blobs), pair_count=np.zeros(1, np.int64),
+                  awake=np.ones(blobs, np.uint8), still=np.zeros(blobs),
                   previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
                   contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
                   spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
-                  c_edge=np.zeros(n, dtype=np.int64), c_t=np.zeros(n), c_depth2=np.zeros(n),
+                  c_edge=np.full(n, -1, dtype=np.int64), c_t=np.zeros(n), c_depth2=np.zeros(n),
                   blob_contact_depth=np.zeros(n))
     return model, state
 

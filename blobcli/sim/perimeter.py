@@ -50,7 +50,7 @@ SWEEPS = 2  # Jacobi passes per iteration: a Jacobi pass converges about half as
 
 
 @stage_kernel
-def solve_perimeter(pos, inv_mass, offsets, rest_length, rest_total, compliance, lam, total_lam, h):
+def solve_perimeter(pos, inv_mass, offsets, awake, rest_length, rest_total, compliance, lam, total_lam, h):
     # Jacobi: every edge's correction is computed from the same positions, and each vertex
     # moves by the sum of its two edges' (x_i -= w_i Δλ_i n_i, x_{i+1} += w_{i+1} Δλ_i n_i).
     # The result does not depend on the order of the edges, so a mirror-symmetric blob stays
@@ -62,6 +62,8 @@ def solve_perimeter(pos, inv_mass, offsets, rest_length, rest_total, compliance,
     # computed before vertex i moves, and the closing edge's first, before vertex o does.
     # Then the ring's total length, as one constraint (see _solve_total_length).
     for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
         o, e = offsets[b], offsets[b + 1]
         alpha = compliance[b] / (h * h)
         inv_weight = 1.0 / (inv_mass[o] + inv_mass[o] + alpha)  # vertex masses are equal within a blob

@@ -34,12 +34,13 @@ from .integrate import MIN_REST_SPEED, REST_SPEED_FACTOR, damp_deformation, pred
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
+from .sleep import update_sleep
 from .statics import collide_statics
 
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
-          "velocities", "restitution", "blob restitution")
+          "velocities", "restitution", "blob restitution", "sleep")
 (DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION,
- BLOB_RESTITUTION) = range(len(STAGES))
+ BLOB_RESTITUTION, SLEEP) = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 
@@ -57,6 +58,9 @@ class StepSettings(NamedTuple):
     rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
     collides: bool  # blob–blob stages: more than one blob
     statics: bool  # static collider stage: any static collider
+    sleep: bool  # islands at rest go to sleep (sim/sleep.py) ...
+    sleep_speed: float  # m/s ... once every blob's rigid speed stays below this ...
+    time_to_sleep: float  # s ... for this long
 
 
 @stage_kernel
@@ -73,65 +77,79 @@ def _advance(steps, state, model, settings, clock):
     pairs, partners, strips = no_pairs, (np.zeros(blob_count + 1, np.int64), no_pairs[:, 0], no_pairs[:, 0]), \
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count))
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
+    if c.collides:  # the sleeping blobs' bounds too: they are kept, not saved in /restart
+        find_blob_pairs(s.position, m.offsets, np.ones(blob_count, np.uint8), s.center, s.radius, s.edges,
+                        s.blob_contact_depth)
+    awake_count = np.count_nonzero(s.awake)
     t = _lap(clock, -1, 0.0)
     for n in range(steps):
+        if awake_count == 0:  # everything asleep: nothing moves, and only a mover could wake it
+            continue
         for _ in range(c.substeps):
             if c.damping > 0.0:
-                damp_deformation(s.position, s.velocity, m.offsets, damping)  # (v - v_rigid) *= exp(-damping h)
+                # (v - v_rigid) *= exp(-damping h)
+                damp_deformation(s.position, s.velocity, m.offsets, s.awake, damping)
                 t = _lap(clock, DAMPING, t)
             # x_prev <- x, v += g h, x += v h (rigid rotation exact); multipliers and contacts start at 0
-            predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, m.offsets, s.predicted, c.gx, c.gy, h)
+            predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, m.offsets, s.awake, s.predicted, c.gx,
+                    c.gy, h)
             s.area_lam[:] = 0.0
             s.perimeter_lam[:] = 0.0
             s.spring_lam[:] = 0.0
             t = _lap(clock, PREDICT, t)
             if c.collides:  # uniform grid of blob centres
-                pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.center, s.radius, s.edges,
-                                                                 s.blob_contact_depth)
+                pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
+                                                                 s.edges, s.blob_contact_depth)
                 if count > PAIRS_PER_BLOB * blob_count:
                     return n, TOO_MANY_PAIRS, count
                 pair_impact = carry_impacts(pairs, blob_count, s.pair_key, s.pair_impact, s.pair_count)
                 t = _lap(clock, BROAD_PHASE, t)
             for it in range(c.iterations):
-                solve_perimeter(s.position, m.inv_mass, m.offsets, m.rest_length, m.rest_perimeter, m.compliance, s.lam,
-                                s.perimeter_lam, h)  # XPBD
+                solve_perimeter(s.position, m.inv_mass, m.offsets, s.awake, m.rest_length, m.rest_perimeter,
+                                m.compliance, s.lam, s.perimeter_lam, h)  # XPBD
                 t = _lap(clock, PERIMETER, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
                 if c.method == KOT:
-                    area_kot(s.position, m.inv_mass, m.offsets, m.target_area)
+                    area_kot(s.position, m.inv_mass, m.offsets, s.awake, m.target_area)
                 elif c.method == XPBD:
-                    area_xpbd(s.position, m.inv_mass, m.offsets, m.target_area, m.area_compliance, s.area_lam, h)
+                    area_xpbd(s.position, m.inv_mass, m.offsets, s.awake, m.target_area, m.area_compliance, s.area_lam,
+                              h)
                 elif c.method == GAS:
-                    area_gas(s.position, m.inv_mass, m.offsets, m.target_area, m.gas_pressure, h * h / c.iterations)
+                    area_gas(s.position, m.inv_mass, m.offsets, s.awake, m.target_area, m.gas_pressure,
+                             h * h / c.iterations)
                 elif c.method == SPRINGS:
-                    area_springs(s.position, m.inv_mass, m.blob_of, m.spring_pairs, m.spring_rest,
+                    area_springs(s.position, m.inv_mass, m.blob_of, s.awake, m.spring_pairs, m.spring_rest,
                                  m.spring_compliance, s.spring_lam, h)
                 t = _lap(clock, AREA, t)
                 if pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
-                    detect_blob_contacts(s.position, m.inv_mass, m.offsets, m.orient, s.center, s.radius, s.edges,
-                                         pairs, partners, s.c_edge, s.c_t, s.c_depth2)
+                    detect_blob_contacts(s.position, m.inv_mass, m.offsets, s.awake, m.orient, s.center, s.radius,
+                                         s.edges, pairs, partners, s.c_edge, s.c_t, s.c_depth2)
                     t = _lap(clock, BLOB_DETECT, t)
-                    resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, m.orient,
-                                          m.material, s.c_edge, s.c_t, s.blob_contact_depth, s.center, s.radius,
-                                          c.up_x, c.up_y, strips, it % 2 == 1)
+                    resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
+                                          m.orient, m.material, s.c_edge, s.c_t, s.blob_contact_depth, s.center,
+                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1)
                     t = _lap(clock, BLOB_RESOLVE, t)
                 if c.statics:  # one kernel per collider kind
-                    collide_statics(s.position, s.previous, m.blob_of, m.material, m.planes, m.segments, m.circles,
-                                    m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
+                    collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.planes, m.segments,
+                                    m.circles, m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
                     t = _lap(clock, STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
-            update_velocities(s.position, s.previous, m.offsets, s.velocity, s.contact_normal, s.contact_depth,
-                              s.contact_material, h)
+            update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
+                              s.contact_depth, s.contact_material, h)
             t = _lap(clock, VELOCITIES, t)
             if c.statics:  # leave statics at e × impact speed, never faster
-                restitution(s.position, s.velocity, m.offsets, s.predicted, s.contact_normal, s.contact_depth,
-                            s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
+                restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
+                            s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, RESTITUTION, t)
             if c.collides:  # blob pairs leave each other at e × impact speed, never faster
-                blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, m.material, s.c_edge,
-                                 s.blob_contact_depth, pairs, s.predicted, pair_impact, c.rest_speed)
+                blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
+                                 s.c_edge, s.blob_contact_depth, pairs, s.predicted, pair_impact, c.rest_speed)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 t = _lap(clock, BLOB_RESTITUTION, t)
+        if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake
+            awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
+                                       s.c_edge, s.awake, s.still, c.sleep_speed, c.time_to_sleep, c.dt)
+            t = _lap(clock, SLEEP, t)
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:
             return n, RUNAWAY_VERTEX, bad
@@ -165,7 +183,8 @@ def settings(model: Model, params: Params) -> StepSettings:
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
                         method=METHODS.index(params.method), up_x=float(up[0]), up_y=float(up[1]),
                         rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED), collides=model.collides,
-                        statics=bool(model.statics))
+                        statics=bool(model.statics), sleep=params.sleep, sleep_speed=params.sleep_speed,
+                        time_to_sleep=params.time_to_sleep)
 
 
 NO_CLOCK = np.zeros(0)

@@ -69,10 +69,12 @@ def _inside_shape(geom, start, stop, x, y):
 
 
 @stage_kernel
-def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
                    contact_normal, contact_depth, contact_material):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
     for i in numba.prange(pos.shape[1]):
+        if not awake[blob_of[i]]:
+            continue
         for s in range(geom.shape[0]):
             px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
             d = (pos[0, i] - px) * nx + (pos[1, i] - py) * ny
@@ -85,12 +87,14 @@ def _collide_plane(pos, prev, blob_of, blob_material, geom, shape_offsets, shape
 
 
 @stage_kernel
-def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
     for i in numba.prange(pos.shape[1]):
+        if not awake[blob_of[i]]:
+            continue
         x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] - SKIN or min(x, x0) > aabb[s, 2] + SKIN
@@ -125,9 +129,11 @@ def _collide_segment(pos, prev, blob_of, blob_material, geom, shape_offsets, sha
 
 
 @stage_kernel
-def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
                     contact_normal, contact_depth, contact_material):
     for i in numba.prange(pos.shape[1]):
+        if not awake[blob_of[i]]:
+            continue
         x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(geom.shape[0]):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
@@ -169,10 +175,12 @@ def _collide_circle(pos, prev, blob_of, blob_material, geom, shape_offsets, shap
 
 
 @stage_kernel
-def _collide_polygon(pos, prev, blob_of, blob_material, geom, shape_offsets, shape_material, aabb,
+def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
                      contact_normal, contact_depth, contact_material):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
     for i in numba.prange(pos.shape[1]):
+        if not awake[blob_of[i]]:
+            continue
         x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
         for s in range(shape_offsets.shape[0] - 1):
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
@@ -236,17 +244,19 @@ assert SOLVERS == ("plane", "segment", "circle", "polygon")  # the order collide
 
 
 @stage_kernel
-def collide_statics(pos, prev, blob_of, blob_material, planes, segments, circles, polygons,
+def collide_statics(pos, prev, blob_of, awake, blob_material, planes, segments, circles, polygons,
                     contact_normal, contact_depth, contact_material):
     """Push vertices out of every static collider: one kernel per solver kind present. Each kind
     comes as its rows (geom, shape_offsets, material, aabb: model.StaticSet), empty if absent."""
     if planes[0].shape[0] > 0:
-        _collide_plane(pos, prev, blob_of, blob_material, *planes, contact_normal, contact_depth, contact_material)
+        _collide_plane(pos, prev, blob_of, awake, blob_material, *planes, contact_normal, contact_depth,
+                       contact_material)
     if segments[0].shape[0] > 0:
-        _collide_segment(pos, prev, blob_of, blob_material, *segments, contact_normal, contact_depth,
+        _collide_segment(pos, prev, blob_of, awake, blob_material, *segments, contact_normal, contact_depth,
                          contact_material)
     if circles[0].shape[0] > 0:
-        _collide_circle(pos, prev, blob_of, blob_material, *circles, contact_normal, contact_depth, contact_material)
+        _collide_circle(pos, prev, blob_of, awake, blob_material, *circles, contact_normal, contact_depth,
+                        contact_material)
     if polygons[0].shape[0] > 0:
-        _collide_polygon(pos, prev, blob_of, blob_material, *polygons, contact_normal, contact_depth,
+        _collide_polygon(pos, prev, blob_of, awake, blob_material, *polygons, contact_normal, contact_depth,
                          contact_material)

@@ -34,13 +34,16 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "c_ratio_defaults": 2.0,
     "c_ratio_1x1": 3.0,
     "thread_speedup_2": 1.8,
+    "sleeping_over_awake": 0.10,
 }
 
 
-def scene_text(blobs: int, layout: str) -> str:
-    """Blobs of 32 vertices: "apart" in a row on a floor, or "piled" in a box (a grid falling in)."""
+def scene_text(blobs: int, layout: str, settings: str = "", sleep: bool = False) -> str:
+    """Blobs of 32 vertices: "apart" in a row on a floor, or "piled" in a box (a grid falling in).
+    `settings`: more [scene] lines. Sleeping is off unless asked: the figures are of blobs simulated."""
+    head = f"[scene]\nsleep = {'true' if sleep else 'false'}\n{settings}\n"
     if layout == "apart":
-        return f"""
+        return head + f"""
 [[blob]]
 name = "b"
 center = [0.0, {RADIUS + 0.001}]
@@ -57,7 +60,7 @@ normal = [0.0, 1.0]
     cols = min((d for d in range(1, blobs + 1) if blobs % d == 0), key=lambda d: abs(d - math.sqrt(1.6 * blobs)))
     rows = blobs // cols
     width = cols * 2 * RADIUS
-    return f"""
+    return head + f"""
 [[blob]]
 name = "b"
 center = [{-width / 2 + RADIUS}, {RADIUS + 0.001}]
@@ -130,8 +133,7 @@ def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tupl
 
 def _core_scene(blobs: int, substeps: int, iterations: int) -> str:
     """Blobs apart on a floor, damping off: only the core stages move anything."""
-    return (f"[scene]\ndamping = 0.0\nsubsteps = {substeps}\niterations = {iterations}\n"
-            + scene_text(blobs, "apart"))
+    return scene_text(blobs, "apart", f"damping = 0.0\nsubsteps = {substeps}\niterations = {iterations}")
 
 
 def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, repeats: int) -> dict | None:
@@ -240,6 +242,29 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
             "contacts_per_iteration": contacts, "vertices": model.vertex_count}
 
 
+def measure_sleeping(blobs: int, settle_steps: int, steps: int) -> dict:
+    """A pile settled with sleeping on: the share asleep, and the cost of a step asleep against the same
+    pile (same positions) with every blob woken and sleeping off."""
+    from dataclasses import replace
+
+    from ..scene.schema import parse_scene
+    from ..sim.model import build, build_params
+    from ..sim.pipeline import advance, settings
+    scene = parse_scene(scene_text(blobs, "piled", sleep=True), "bench-sleeping")
+    model, state = build(scene)
+    params = build_params(scene)
+    advance(state, model, params, settle_steps)
+    asleep = 1.0 - float(state.awake.mean())
+    sleeping = settings(model, params)
+    sec_asleep = _median_time(lambda: advance(state, model, params, steps, step_settings=sleeping), 3, 1) / steps
+    state.awake[:] = 1
+    awake = settings(model, replace(params, sleep=False))
+    sec_awake = _median_time(lambda: advance(state, model, params, steps, step_settings=awake), 3, 1) / steps
+    return {"blobs": blobs, "asleep": asleep, "settled_s": settle_steps * params.dt,
+            "ms_per_step_asleep": sec_asleep * 1e3, "ms_per_step_awake": sec_awake * 1e3,
+            "ratio": sec_asleep / sec_awake}
+
+
 def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:
     """pymunk (Chipmunk2D): each blob a ring of 32 small circles joined by damped springs,
     with spokes to a centre body; same counts, layouts, dt and substeps as blobsim."""
@@ -308,7 +333,7 @@ def measure_startup(repeats: int, cold: bool = True) -> dict:
     with an empty one, which compiles every kernel the run needs."""
     with tempfile.TemporaryDirectory() as d:
         scene = Path(d) / "one.toml"
-        scene.write_text("[scene]\nsteps = 1000\n" + scene_text(1, "apart"))
+        scene.write_text(scene_text(1, "apart", "steps = 1000"))
         out = str(Path(d) / "one.h5")
         colds = []
         for k in range(max(1, repeats // 2) if cold else 0):
@@ -325,7 +350,7 @@ def measure_recording(blobs: int, steps: int, repeats: int) -> dict:
 
     from ..io.run import simulate
     from ..scene.schema import parse_scene
-    base = parse_scene(f"[scene]\nsteps = {steps}\n" + scene_text(blobs, "apart"), "bench-record")
+    base = parse_scene(scene_text(blobs, "apart", f"steps = {steps}"), "bench-record")
     out = {}
     with tempfile.TemporaryDirectory() as d:
         for every in (1, 10):
@@ -342,7 +367,7 @@ def measure_memory(blobs: int, steps: int) -> dict:
     with tempfile.TemporaryDirectory() as d:
         scene = Path(d) / "m.toml"
         for n in (steps, 4 * steps):
-            scene.write_text(f"[scene]\nsteps = {n}\n" + scene_text(blobs, "apart"))
+            scene.write_text(scene_text(blobs, "apart", f"steps = {n}"))
             code = ("import resource, sys; from blobcli.cli import main; main(sys.argv[1:]); "
                     "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
             r = subprocess.run([sys.executable, "-c", code, "run", str(scene), "-o", str(Path(d) / "m.h5"), "-q"],
@@ -356,7 +381,7 @@ def measure_sweep(points: int, steps: int) -> dict:
     against as many `blobsim run` processes one after another (what a shell loop does)."""
     with tempfile.TemporaryDirectory() as d:
         base = Path(d) / "one.toml"
-        base.write_text(f"[scene]\nsteps = {steps}\n" + scene_text(1, "apart"))
+        base.write_text(scene_text(1, "apart", f"steps = {steps}"))
         frictions = [0.1 + 0.5 * k / points for k in range(points)]
         sweep = Path(d) / "bench.toml"
         sweep.write_text(f'[sweep]\nscene = "one.toml"\n[[sweep.axis]]\nkey = "blob[*].friction"\n'
@@ -388,6 +413,7 @@ def run_bench(quick: bool = False) -> dict:
                               for s, i in ((4, 2), (1, 1))]
     results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
+    results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 900, 5 if quick else 20)
     results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
@@ -446,6 +472,11 @@ def format_bench(r: dict) -> str:
     lines.append(f"piled {st['blobs']} blobs, ms per step by stage: "
                  + ", ".join(f"{k} {v:.2f}" for k, v in st["ms_per_step"].items())
                  + f"; {st['contacts_per_iteration']} of {st['vertices']} vertices in blob contact per iteration")
+    sl = r["sleeping"]
+    lines.append(f"settled pile of {sl['blobs']} blobs, {sl['settled_s']:g} s after the drop: "
+                 f"{100 * sl['asleep']:.0f}% asleep; a step costs {sl['ms_per_step_asleep']:.3f} ms asleep vs "
+                 f"{sl['ms_per_step_awake']:.3f} ms awake, {100 * sl['ratio']:.1f}% "
+                 f"(target <= {100 * t['sleeping_over_awake']:g}%)")
     s = r["startup"]
     cold = f"{s['cold_s']:.2f} s" if s["cold_s"] is not None else "not measured with --quick"
     lines.append(f"blobsim run, 1 blob, 1000 steps: cold cache {cold}, warm {s['warm_s']:.2f} s "

@@ -1,0 +1,72 @@
+"""`python -m blobcli.tools.piles`: do piles come to rest, and what does a sleeping pile cost?
+
+Prints, for a pile of blobs dropped into a box (bench.scene_text, "piled") and for the shipped
+scenes/stack.toml: the fastest blob centre and the fastest vertex over the last second before
+`--seconds` with sleeping off, and with sleeping on (the default) the share of blobs asleep and
+the wall time of that last second against the same second awake. Figures, not tests: the tests
+(tests/test_sleep.py) hold smaller cases to tolerances.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def last_second(scene, seconds: float) -> dict:
+    """Run `scene` for `seconds`; over the last second: the fastest centre and vertex (m/s), the share
+    of blobs asleep at the end and the wall time of that second (s)."""
+    from ..sim.model import build, build_params
+    from ..sim.pipeline import advance
+    model, state = build(scene)
+    params = build_params(scene)
+    per_second = int(round(1.0 / params.dt))
+    steps = int(round(seconds / params.dt))
+    advance(state, model, params, steps - per_second)
+    timed = type(state)(*(a.copy() for a in state))  # the last second again, in one compiled call, for the wall time
+    t0 = time.perf_counter()
+    advance(timed, model, params, per_second)
+    wall = time.perf_counter() - t0
+    centre = vertex = 0.0
+    sizes = np.diff(model.offsets)[:, None]
+    for _ in range(per_second):
+        advance(state, model, params, 1)
+        v = state.vel
+        centres = np.add.reduceat(v, model.offsets[:-1]) / sizes
+        centre = max(centre, float(np.hypot(*centres.T).max()))
+        vertex = max(vertex, float(np.hypot(*v.T).max()))
+    return {"centre_m_s": centre, "vertex_m_s": vertex, "asleep": 1.0 - float(state.awake.mean()), "wall_s": wall}
+
+
+def sleep_setting(scene, sleep: bool):
+    return replace(scene, settings=replace(scene.settings, sleep=sleep))
+
+
+def main(argv=None) -> int:
+    from ..scene.schema import load_scene, parse_scene
+    from .bench import scene_text
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--blobs", type=int, default=60)
+    ap.add_argument("--seconds", type=float, default=14.0, help="simulated time after the drop (s)")
+    args = ap.parse_args(argv)
+    cases = [(f"pile of {args.blobs} blobs", parse_scene(scene_text(args.blobs, "piled"), "pile")),
+             ("scenes/stack.toml", load_scene(ROOT / "scenes" / "stack.toml"))]
+    for name, scene in cases:
+        awake = last_second(sleep_setting(scene, False), args.seconds)
+        asleep = last_second(sleep_setting(scene, True), args.seconds)
+        print(f"{name}, second {args.seconds - 1:g}-{args.seconds:g} after the drop:")
+        print(f"  sleep = false: fastest centre {1e3 * awake['centre_m_s']:.2f} mm/s, fastest vertex "
+              f"{1e3 * awake['vertex_m_s']:.2f} mm/s; wall {1e3 * awake['wall_s']:.1f} ms")
+        print(f"  sleep = true:  {100 * asleep['asleep']:.0f}% of blobs asleep; wall {1e3 * asleep['wall_s']:.1f} ms, "
+              f"{100 * asleep['wall_s'] / awake['wall_s']:.1f}% of awake")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

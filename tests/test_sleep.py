@@ -1,0 +1,133 @@
+"""Sleeping islands (blobcli/sim/sleep.py): piles at rest sleep, frozen exactly, and wake when a mover comes."""
+
+import h5py
+import numpy as np
+import pytest
+from conftest import PILE_ASLEEP, PILE_REST_CENTRE, PILE_REST_VERTEX, blobsim, scene
+
+from blobcli import build, build_params
+from blobcli.sim.pipeline import advance
+from blobcli.tools.compare import compare_files
+
+PILE = """
+[scene]
+sleep = {sleep}
+[[blob]]
+name = "pile"
+center = [-0.6, 0.25]
+radius = 0.2
+vertices = 16
+grid = [4, 3]
+spacing = [0.4, 0.45]
+{extra}
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+[[static]]
+kind = "box"
+center = [-1.0, 2.0]
+size = [0.2, 4.0]
+[[static]]
+kind = "box"
+center = [1.0, 2.0]
+size = [0.2, 4.0]
+"""
+LATE_BLOB = """
+[[blob]]
+name = "late"
+center = [0.0, 250.0]
+radius = 0.2
+vertices = 16
+"""  # falls 247 m: lands on the pile about 7.1 s after the start; the pile sleeps from about 5.5 s
+
+
+def run(text, seconds):
+    s = scene(text)
+    model, state = build(s)
+    params = build_params(s)
+    advance(state, model, params, int(round(seconds / params.dt)))
+    return model, state, params
+
+
+def centre_speeds(model, state):
+    return np.hypot(*(np.add.reduceat(state.vel, model.offsets[:-1]) / np.diff(model.offsets)[:, None]).T)
+
+
+def test_a_pile_at_rest_falls_asleep_frozen_exactly():
+    model, state, params = run(PILE.format(sleep="true", extra=""), 6.0)
+    assert state.awake.sum() <= (1 - PILE_ASLEEP) * model.blob_count, state.awake
+    asleep = state.awake == 0
+    frozen = state.pos.copy()
+    advance(state, model, params, 60)
+    sleeping_vertices = asleep[model.blob_of]
+    assert np.array_equal(state.pos[sleeping_vertices], frozen[sleeping_vertices])  # bit for bit
+    assert not state.vel[sleeping_vertices].any()
+
+
+def test_without_sleeping_the_same_pile_is_still():
+    model, state, _ = run(PILE.format(sleep="false", extra=""), 6.0)
+    assert state.awake.all()
+    assert centre_speeds(model, state).max() < PILE_REST_CENTRE
+    assert np.hypot(*state.vel.T).max() < PILE_REST_VERTEX
+
+
+def test_a_blob_landing_on_a_sleeping_pile_wakes_it():
+    text = PILE.format(sleep="true", extra=LATE_BLOB)
+    s = scene(text)
+    model, state = build(s)
+    params = build_params(s)
+    late = model.names.index("late")
+    awake_before_landing = woken = None
+    for second in range(1, 13):
+        advance(state, model, params, 60)
+        if second == 6:  # the pile has slept; the late blob is still falling, far above it
+            awake_before_landing = state.awake.copy()
+        if second == 8:  # it has landed: its island is awake
+            woken = state.awake.copy()
+    assert awake_before_landing[late] and awake_before_landing.sum() == 1
+    assert woken.sum() > 1
+    assert state.pos[model.offsets[late]:model.offsets[late + 1], 1].min() > 0.2  # on the pile, not through it
+    assert state.awake.sum() == 0  # and the whole heap sleeps again
+
+
+def test_a_spinning_blob_does_not_sleep():
+    model, state, _ = run("""
+[scene]
+gravity = [0.0, 0.0]
+damping = 0.0
+[[blob]]
+center = [0.0, 0.0]
+radius = 0.3
+angular_velocity = 0.1
+""", 3.0)  # the centre stays put, but the rim moves at 30 mm/s
+    assert state.awake.all()
+
+
+def test_the_file_records_who_is_awake_and_resumes_the_sleep_state(tmp_path):
+    path = tmp_path / "pile.toml"
+    path.write_text(PILE.format(sleep="true", extra=""))
+    fresh, resumed = tmp_path / "fresh.h5", tmp_path / "resumed.h5"
+    assert blobsim("run", path, "-o", fresh, "--steps", "420", "-q").returncode == 0
+    with h5py.File(fresh) as f:
+        awake = f["observables/awake/value"][...]
+        assert awake.dtype == np.uint8 and awake.shape == (421, 12)
+        assert awake[0].all() and not awake[-1].any()
+        assert np.array_equal(f["restart/awake"][...], awake[-1])
+    # stopped at 5 s, before the pile sleeps, and resumed: the still timers carry over, bit for bit
+    assert blobsim("run", path, "-o", resumed, "--steps", "300", "-q").returncode == 0
+    assert blobsim("run", path, "--resume", resumed, "--steps", "420", "-q").returncode == 0
+    assert compare_files(fresh, resumed).same
+    with h5py.File(resumed) as f:
+        assert np.array_equal(f["observables/awake/value"][...], awake)
+
+
+@pytest.mark.parametrize("key, value, message", [("sleep", '"yes"', "must be true or false"),
+                                                 ("sleep_speed", "0.0", "must be > 0"),
+                                                 ("time_to_sleep", "-1.0", "must be > 0")])
+def test_bad_sleep_settings_are_refused(tmp_path, key, value, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(f"[scene]\n{key} = {value}\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n")
+    r = blobsim("run", path, "-o", tmp_path / "x.h5")
+    assert r.returncode == 2 and f"bad.toml:2: scene.{key}: {message}" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "x.h5").exists()
