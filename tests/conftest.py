@@ -101,9 +101,10 @@ def tmp_out(tmp_path):
     return tmp_path / "out.h5"
 
 
-def start_run(args, out: Path, min_bytes: int = 1 << 20, timeout: float = 120.0) -> subprocess.Popen:
+def start_run(args, out: Path, min_bytes: int = 1 << 20, timeout: float = 300.0) -> subprocess.Popen:
     """Start `blobsim run ARGS -o OUT -q` and return once its .partial file has grown past
-    min_bytes, i.e. at least one block of frames is computed and on disk (polled, not slept)."""
+    min_bytes, i.e. at least one block of frames is computed and on disk (polled, not slept). The timeout
+    allows for a cold numba cache: the parallel step compiles for over a minute on 2 cores."""
     proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", *map(str, args), "-o", str(out), "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     partial = Path(str(out) + ".partial")
