@@ -91,6 +91,20 @@ def test_a_blob_landing_on_a_sleeping_pile_wakes_it():
     assert state.awake.sum() == 0  # and the whole heap sleeps again
 
 
+def test_how_the_steps_are_split_into_calls_does_not_change_a_bit():
+    """blobsim run grows its compiled calls to a wall time: a blob landing on a sleeping pile must come
+    out the same whether the steps ran in one call or one by one."""
+    s = scene(PILE.format(sleep="true", extra=LATE_BLOB))
+    runs = []
+    for calls in (1, 540):
+        model, state = build(s)
+        params = build_params(s)
+        for _ in range(calls):
+            advance(state, model, params, 540 // calls)
+        runs.append(state.pos.copy())
+    assert np.array_equal(*runs)
+
+
 def test_a_spinning_blob_does_not_sleep():
     model, state, _ = run("""
 [scene]

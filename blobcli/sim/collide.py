@@ -55,7 +55,7 @@ import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
-from .ring import centre_motion, next_in_ring, ring_contains
+from .ring import centre_motion, next_in_ring, ring_contains, ring_radius
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
@@ -66,10 +66,11 @@ MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thr
 
 
 @stage_kernel
-def _blob_bounds(pos, offsets, awake, center, radius, edges):
-    """Each awake blob's centre, radius and edge table (a sleeping blob's do not change)."""
+def _blob_bounds(pos, offsets, awake, everyone, center, radius, edges):
+    """Each blob's centre, radius and edge table; without `everyone`, only the awake blobs' (a sleeping
+    blob's have not changed since the broad phase computed them from its frozen positions)."""
     for b in numba.prange(offsets.shape[0] - 1):
-        if not awake[b]:
+        if not (everyone or awake[b]):
             continue
         o, e = offsets[b], offsets[b + 1]
         cx = cy = 0.0
@@ -86,10 +87,7 @@ def _blob_bounds(pos, offsets, awake, center, radius, edges):
             cy += y
         cx /= e - o
         cy /= e - o
-        r2 = 0.0
-        for i in range(o, e):
-            r2 = max(r2, (pos[0, i] - cx) ** 2 + (pos[1, i] - cy) ** 2)
-        center[b, 0], center[b, 1], radius[b] = cx, cy, math.sqrt(r2)
+        center[b, 0], center[b, 1], radius[b] = cx, cy, ring_radius(pos, o, e, cx, cy)
 
 
 @stage_kernel
@@ -150,8 +148,12 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth):
     """Broad phase: the pairs of blobs close enough to touch this substep, sleeping or not, as (pairs
     (P, 2), each blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P).
-    Past PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant)."""
-    _blob_bounds(pos, offsets, awake, center, radius, edges)
+    Past PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant).
+
+    Every blob's bounds are computed, sleeping ones' too: from their frozen positions they come out
+    the same bits every substep, so the narrow phase reads the same sleeping edges however the
+    steps are split into compiled calls (and after a resume, when the scratch starts empty)."""
+    _blob_bounds(pos, offsets, awake, True, center, radius, edges)
     blob_count = offsets.shape[0] - 1
     pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
     blob_contact_depth[:] = 0.0  # this substep's contacts start empty
@@ -458,7 +460,7 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 def detect_blob_contacts(pos, inv_mass, offsets, awake, orient, center, radius, edges, pairs, partners, c_edge, c_t,
                          c_depth2):
     """Narrow phase: each vertex's contact (c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds(pos, offsets, awake, center, radius, edges)
+    _blob_bounds(pos, offsets, awake, False, center, radius, edges)
     deep = np.empty(pairs.shape[0], dtype=np.bool_)
     _deep_pairs(pos, offsets, awake, pairs, center, radius, deep)
     for k in range(pairs.shape[0]):  # rare: separate them first, in pair order

@@ -78,9 +78,6 @@ def _advance(steps, state, model, settings, clock):
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count))
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
     awake_count = np.count_nonzero(s.awake)
-    if c.collides and awake_count < blob_count:  # the sleeping blobs' bounds: kept, not saved in /restart
-        find_blob_pairs(s.position, m.offsets, np.ones(blob_count, np.uint8), s.center, s.radius, s.edges,
-                        s.blob_contact_depth)
     t = _lap(clock, -1, 0.0)
     for n in range(steps):
         if awake_count == 0:  # everything asleep: nothing moves, and only a mover could wake it

@@ -4,6 +4,8 @@ Blob b's ring is pos[o:e] with o, e = offsets[b], offsets[b + 1]; vertex i's edg
 to `next_in_ring(i, o, e)`.
 """
 
+import math
+
 from ..jit import inline_kernel
 
 
@@ -35,6 +37,15 @@ def centre_motion(pos, vel, o, e):
     for i in range(o, e):
         k += vel[0, i] ** 2 + vel[1, i] ** 2
     return (cx, cy), (vx, vy), 0.5 * k / (e - o)
+
+
+@inline_kernel
+def ring_radius(pos, o, e, cx, cy):
+    """The distance from (cx, cy) to the farthest vertex of ring o..e."""
+    r2 = 0.0
+    for i in range(o, e):
+        r2 = max(r2, (pos[0, i] - cx) ** 2 + (pos[1, i] - cy) ** 2)
+    return math.sqrt(r2)
 
 
 @inline_kernel

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..jit import kernel
 from .integrate import rigid_motion
+from .ring import ring_radius
 
 
 @kernel
@@ -42,10 +43,7 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, s
             continue
         o, e = offsets[b], offsets[b + 1]
         cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
-        r2 = 0.0
-        for i in range(o, e):
-            r2 = max(r2, (pos[0, i] - cx) ** 2 + (pos[1, i] - cy) ** 2)
-        speed = max(math.sqrt(vx * vx + vy * vy), abs(w) * math.sqrt(r2))
+        speed = max(math.sqrt(vx * vx + vy * vy), abs(w) * ring_radius(pos, o, e, cx, cy))
         still[b] = still[b] + dt if speed < sleep_speed else 0.0
     # union-find over the pairs; the root is the smallest blob index of the island
     parent = np.arange(B)
