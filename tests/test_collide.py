@@ -102,7 +102,7 @@ def settle(name, steps):
 
 def deepest_overlap(state, model):
     pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
-                                state.blob_contact_depth)
+                                state.blob_contact_depth, state.c_hit)
     worst = 0.0
     for a, b in pairs:
         for x, y in ((a, b), (b, a)):

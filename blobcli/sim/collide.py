@@ -7,11 +7,19 @@ only blobs in neighbouring cells are compared: linear in the blob count. Pairs f
 than r_a + r_b + margin are skipped. Pairs come out in a fixed order (by first blob, then
 grid neighbour, then blob index), so runs are bit-identical.
 
-Narrow phase (every iteration, both directions): a vertex p of A inside polygon B is pushed
-out to B's nearest edge, preferring edges whose outward normal opposes p's own (as JellyCar's
-and Gish's engines do), so a vertex is not pulled through to B's far side. The point–edge
-constraint, with q = (1 - t) x_0 + t x_1 the closest point on edge (x_0, x_1) and n its
-outward normal:
+Narrow phase (both directions), after Box2D v3, which builds its contacts once per step with a
+speculative margin and solves them in every substep. Contacts are found once per step
+(keep_blob_contacts): each vertex p of A keeps up to CONTACTS_PER_VERTEX contacts, one per
+neighbouring blob B, nearest first: B's nearest edge, if p is inside B or outside it by less
+than the pair's margin m_A + m_B. Inside, edges whose outward normal opposes p's own are
+preferred (as JellyCar's and Gish's engines do), so a vertex is not pulled through to B's far
+side. Each blob's budget m (see _renew) covers the motion the step can bring; before every
+iteration, a blob with a vertex farther than m from where its contacts were found has them
+found again, with its partners (whose contacts with it are stale too); the rest keep theirs.
+Every iteration, a kept contact follows p along B's ring to the locally nearest point (see
+_resolve_contact) and acts only while p is inside there: a one-sided constraint. The
+point–edge constraint, with q = (1 - t) x_0 + t x_1 the closest point on edge (x_0, x_1) and
+n its outward normal:
     C = (p - q) · n >= 0,   ∇_p C = n,   ∇_0 C = -(1 - t) n,   ∇_1 C = -t n,
     λ = -C / (w_p + (1 - t)² w_0 + t² w_1),
     Δp = w_p λ n,   Δx_0 = -(1 - t) w_0 λ n,   Δx_1 = -t w_1 λ n.
@@ -61,6 +69,9 @@ PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawne
 #                     the pair lists would exhaust memory, so the run stops instead
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
+CONTACTS_PER_VERTEX = 2  # a vertex keeps contacts with its two nearest neighbouring blobs (three blobs meet at
+#                          a junction of a pile)
+CONTACT_SLOP = 0.02  # × the blob's radius: room in the kept contacts' margin for the solver's own corrections
 BLOBS_PER_STRIP = 32  # the resolution cuts a scene into B // 32 vertical strips (at least 1) ...
 MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thread count
 
@@ -145,7 +156,7 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 
 
 @stage_kernel
-def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth):
+def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth, c_hit):
     """Broad phase: the pairs of blobs close enough to touch this substep, sleeping or not, as (pairs
     (P, 2), each blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P).
     Past PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant).
@@ -156,7 +167,8 @@ def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_dep
     _blob_bounds(pos, offsets, awake, True, center, radius, edges)
     blob_count = offsets.shape[0] - 1
     pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
-    blob_contact_depth[:] = 0.0  # this substep's contacts start empty
+    blob_contact_depth[:] = 0.0  # no contact has pushed yet this substep
+    c_hit[:] = 0
     return pairs, _partners(pairs, blob_count), _strips(center), count
 
 
@@ -260,18 +272,55 @@ def _deep_pairs(pos, offsets, awake, pairs, center, radius, deep):
 
 
 @stage_kernel
-def _detect(pos, offsets, awake, orient, center, radius, edges, start, partner, pair_of, deep, c_edge, c_t,
-            c_depth2):
-    """For every vertex of an awake blob: the edge it must leave (c_edge = -1: none), from its deepest
-    contact. (A sleeping blob's vertices keep c_edge = -1: sleep.update_sleep clears them.)
+def _moved(pos, anchor, offsets, awake, center, radius, moved):
+    """For each awake blob b: its centre and radius now, and moved[b], how far its vertices are, at
+    most, from where its contacts were found."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
+        o, e = offsets[b], offsets[b + 1]
+        d2 = cx = cy = 0.0
+        for i in range(o, e):
+            d2 = max(d2, (pos[0, i] - anchor[0, i]) ** 2 + (pos[1, i] - anchor[1, i]) ** 2)
+            cx += pos[0, i]
+            cy += pos[1, i]
+        moved[b] = math.sqrt(d2)
+        center[b, 0], center[b, 1] = cx / (e - o), cy / (e - o)
+        radius[b] = ring_radius(pos, o, e, center[b, 0], center[b, 1])
 
-    Parallel over blobs; each blob writes only its own vertices' slots, and keeps the
-    deepest of its contacts, so the result does not depend on the number of threads."""
+
+@stage_kernel
+def _renew(pos, vel, offsets, awake, radius, outgrown, reach_time, g, anchor, budget, moved):
+    """Outgrown blobs start afresh: anchor here, moved 0, and the budget
+    m = min(CONTACT_SLOP r + |v|_max T + |g| T², BROAD_MARGIN r / 2), T the time left in the step: the
+    motion the step can bring, with room for the solver's corrections; the cap keeps every margin within
+    the broad phase's, so a pair that was not listed when contacts were found cannot touch unseen."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        if not (awake[b] and outgrown[b]):
+            continue
+        v2 = 0.0
+        for i in range(offsets[b], offsets[b + 1]):
+            anchor[0, i], anchor[1, i] = pos[0, i], pos[1, i]
+            v2 = max(v2, vel[0, i] ** 2 + vel[1, i] ** 2)
+        moved[b] = 0.0
+        budget[b] = min(CONTACT_SLOP * radius[b] + math.sqrt(v2) * reach_time + g * reach_time ** 2,
+                        0.5 * BROAD_MARGIN * radius[b])
+
+
+@stage_kernel
+def _detect(pos, offsets, awake, stale, orient, center, radius, edges, start, partner, pair_of, deep, reach, c_edge):
+    """For every vertex of a stale blob A: its contacts (the edge), at most CONTACTS_PER_VERTEX, each
+    with another blob, nearest first (inside before outside): every blob B whose boundary the vertex
+    is inside of, or outside of by less than the pair's margin reach[A] + reach[B], how far each may
+    go from here before it outgrows its budget.
+
+    Parallel over blobs; each blob writes only its own vertices' slots, so the result does not
+    depend on the number of threads."""
     longest = 0
     for b in range(offsets.shape[0] - 1):
         longest = max(longest, offsets[b + 1] - offsets[b])
     for A in numba.prange(offsets.shape[0] - 1):
-        if not awake[A]:
+        if not stale[A]:
             continue
         d2 = np.empty(longest)  # per edge of the partner: squared distance, t, normal opposes
         t = np.empty(longest)
@@ -281,20 +330,23 @@ def _detect(pos, offsets, awake, orient, center, radius, edges, start, partner, 
         bits = d2.view(np.int64)
         opposing_bits = np.empty(longest, np.int64)  # bits, or NO_EDGE where the normal does not oppose
         oa, ea = offsets[A], offsets[A + 1]
+        key = np.empty((CONTACTS_PER_VERTEX, ea - oa))  # signed distance: < 0 inside
         for i in range(oa, ea):
-            c_edge[i] = -1
+            for s in range(CONTACTS_PER_VERTEX):
+                c_edge[s, i] = -1
         for k in range(start[A], start[A + 1]):
             if deep[pair_of[k]]:
                 continue
             B = partner[k]
             ob, eb = offsets[B], offsets[B + 1]
             n = eb - ob
-            cx, cy, r2 = center[B, 0], center[B, 1], radius[B] * radius[B]
+            margin = reach[A] + reach[B]
+            cx, cy, reach2 = center[B, 0], center[B, 1], (radius[B] + margin) ** 2
             ax, ay, ex, ey, inv_len2 = (edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb],
                                         edges[4, ob:eb])
             for i in range(oa, ea):
                 x, y = pos[0, i], pos[1, i]
-                if (x - cx) ** 2 + (y - cy) ** 2 > r2:  # outside B's bounding circle
+                if (x - cx) ** 2 + (y - cy) ** 2 > reach2:  # beyond B's bounding circle and the margin
                     continue
                 # p's outward normal, from its neighbours (sign from A's winding).
                 ip = i - 1 if i > oa else ea - 1
@@ -312,10 +364,9 @@ def _detect(pos, offsets, awake, orient, center, radius, edges, start, partner, 
                     d2[m] = (t[m] * ex[m] - rx) ** 2 + (t[m] * ey[m] - ry) ** 2
                     opposes[m] = orient[B] * (ey[m] * vnx - ex[m] * vny) < 0.0
                     opposing_bits[m] = bits[m] if opposes[m] else NO_EDGE
-                if crossings % 2 == 0:  # outside B
-                    continue
-                # Pass 2: the least squared distance over all edges and over the opposing ones;
-                # the contact is the first edge with that distance (opposing, if any edge is)
+                inside = crossings % 2 == 1
+                # Pass 2: the least squared distance over all edges and (inside B) over the opposing
+                # ones; the contact is the first edge with that distance (opposing, if any edge is)
                 # in ring order from the closing edge: n - 1, 0, 1, ..., n - 2.
                 least = least_opposing = NO_EDGE
                 for m in range(n):
@@ -323,20 +374,27 @@ def _detect(pos, offsets, awake, orient, center, radius, edges, start, partner, 
                     least_opposing = min(least_opposing, opposing_bits[m])
                 if least == NO_EDGE:
                     continue
-                any_opposing = least_opposing != NO_EDGE
+                any_opposing = inside and least_opposing != NO_EDGE
                 if not any_opposing:
                     least_opposing = least
                 m = n - 1
                 while bits[m] != least_opposing or (any_opposing and not opposes[m]):
                     m = m + 1 if m < n - 1 else 0
-                best = d2[m]
-                # keep the deepest contact of this vertex (its depth: distance to the edge)
-                if c_edge[i] < 0 or best > c_depth2[i]:
-                    c_edge[i], c_t[i], c_depth2[i] = ob + m, t[m], best
+                distance = math.sqrt(d2[m])
+                if not inside and distance >= margin:
+                    continue
+                # keep the nearest CONTACTS_PER_VERTEX, by signed distance (ties: the first found)
+                signed, edge = -distance if inside else distance, ob + m
+                for s in range(CONTACTS_PER_VERTEX):
+                    if c_edge[s, i] < 0 or signed < key[s, i - oa]:
+                        signed, key[s, i - oa] = key[s, i - oa], signed
+                        edge, c_edge[s, i] = c_edge[s, i], edge
+                        if edge < 0:
+                            break
 
 
 @stage_kernel
-def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, contact_depth,
+def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
@@ -352,24 +410,27 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
     strips = strip_start.shape[0] - 1
     for q in range(pos.shape[1]):
         p = pos.shape[1] - 1 - q if backward else q
-        if c_edge[p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[p]]]) >= 2:
-            _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
-                             contact_depth, center, radius, up_x, up_y)
+        for c in range(CONTACTS_PER_VERTEX):
+            if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
+                _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                                 c_hit, contact_depth, center, radius, up_x, up_y)
     for parity in range(2):
         for q in numba.prange((strips - parity) // 2):
             s = parity + 2 * q
-            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
-                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
+            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                             c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
+                             backward)
     for parity in range(2):
         for q in numba.prange((strips - parity + 1) // 2):
             s = parity + 2 * q
-            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
-                             contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward)
+            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                             c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
+                             backward)
 
 
 @inline_kernel
-def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
-                     contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
+def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                     c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, backward):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s; backward: each strip's in reverse order."""
     for side in range(1 if other == s else 2):
@@ -380,18 +441,82 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, ori
             o, e = offsets[a], offsets[a + 1]
             for q in range(o, e):
                 p = o + e - 1 - q if backward else q
-                if c_edge[p] >= 0 and strip_of[blob_of[c_edge[p]]] == there:
-                    _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
-                                     contact_depth, center, radius, up_x, up_y)
+                for c in range(CONTACTS_PER_VERTEX):
+                    if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
+                        _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                                         c_hit, contact_depth, center, radius, up_x, up_y)
 
 
 @inline_kernel
-def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, contact_depth,
-                     center, radius, up_x, up_y):
-    """Push vertex p out of its contact edge, with friction."""
-    e0, t = c_edge[p], c_t[p]
+def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+                     contact_depth, center, radius, up_x, up_y):
+    """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
+    inside there, push it out, with friction."""
+    e0 = c_edge[s, p]
     blob = blob_of[e0]
     a = blob_of[p]
+    o, e = offsets[blob], offsets[blob + 1]
+    px, py = pos[0, p], pos[1, p]
+    # Walk along the ring to the locally nearest point q = (1 - t) x_0 + t x_1: while p projects
+    # before the kept edge's start (t < 0) and onto the previous edge short of their shared corner,
+    # step back; likewise forward. Each step strictly shortens |p - q|, so it cannot cycle; it stops
+    # on an edge (0 < t < 1) or at a corner between two edges (t = 0 or 1). It steps only onto edges
+    # facing p's own outward normal v (the rule of _detect): a vertex deep inside must not walk round
+    # to the far side and be pushed out through it.
+    ia, oa_, ea_ = p - offsets[a], offsets[a], offsets[a + 1]
+    ip, inx = (p - 1 if ia > 0 else ea_ - 1), next_in_ring(p, oa_, ea_)
+    vnx = orient[a] * (pos[1, inx] - pos[1, ip])
+    vny = -orient[a] * (pos[0, inx] - pos[0, ip])
+    e1 = next_in_ring(e0, o, e)
+    t = _along(pos, e0, e1, px, py)
+    for _ in range(e - o):
+        if t < 0.0:
+            before = e0 - 1 if e0 > o else e - 1
+            t_before = _along(pos, before, e0, px, py)
+            if t_before < 1.0 and _faces(pos, orient[blob], before, e0, vnx, vny):
+                e0, e1, t = before, e0, t_before
+                continue
+        elif t > 1.0:
+            after = next_in_ring(e1, o, e)
+            t_after = _along(pos, e1, after, px, py)
+            if t_after > 0.0 and _faces(pos, orient[blob], e1, after, vnx, vny):
+                e0, e1, t = e1, after, t_after
+                continue
+        break
+    t = min(max(t, 0.0), 1.0)
+    c_edge[s, p] = e0
+    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
+    length = math.sqrt(ex * ex + ey * ey)
+    if length == 0.0:
+        return
+    nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
+    qx, qy = pos[0, e0] + t * ex, pos[1, e0] + t * ey
+    C = (px - qx) * nx + (py - qy) * ny
+    if t == 0.0 or t == 1.0:
+        # q is the corner k between this edge and its neighbour. p is inside when it lies behind the
+        # corner's pseudo-normal, the sum of the two edges' outward normals (in the corner's region
+        # that is the polygon's side, convex corner or reflex). Push toward the corner, along q - p
+        # (along the normal of whichever edge came first, every push was turned the same way round
+        # the ring, and stacked blobs slid off each other).
+        k, other = (e0, e0 - 1 if e0 > o else e - 1) if t == 0.0 else (e1, next_in_ring(e1, o, e))
+        fx, fy = pos[0, other] - pos[0, k], pos[1, other] - pos[1, k]  # along the neighbouring edge, from k
+        f = math.sqrt(fx * fx + fy * fy)
+        if f > 0.0:
+            # its outward normal: the edge k→other turned like e0→e1 when t = 1, reversed when t = 0
+            side = 1.0 if t == 1.0 else -1.0
+            mx, my = side * orient[blob] * fy / f, -side * orient[blob] * fx / f
+        else:
+            mx, my = nx, ny
+        dx, dy = qx - px, qy - py
+        if dx * (nx + mx) + dy * (ny + my) <= 0.0:  # p - q along the pseudo-normal: outside
+            return
+        dist = math.sqrt(dx * dx + dy * dy)
+        if dist == 0.0:
+            return
+        nx, ny, C = dx / dist, dy / dist, -dist
+    elif C >= 0.0:
+        return
+    c_hit[s, p] = 1
     wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
     # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
     # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
@@ -402,25 +527,6 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, ma
         we *= (wp / we) ** min(2.0 * f, 2.0)
     elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
         wp *= (we / wp) ** min(-2.0 * f, 2.0)
-    e1 = e0 + 1 if e0 + 1 < offsets[blob + 1] else offsets[blob]
-    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
-    length = math.sqrt(ex * ex + ey * ey)
-    if length == 0.0:
-        return
-    nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
-    qx, qy = pos[0, e0] + t * ex, pos[1, e0] + t * ey
-    C = (pos[0, p] - qx) * nx + (pos[1, p] - qy) * ny
-    if C >= 0.0:
-        return
-    if t == 0.0 or t == 1.0:
-        # Nearest point is a corner, equally near to both its edges: push toward it,
-        # along q - p. (Along the normal of whichever edge came first, every push was
-        # turned the same way round the ring, and stacked blobs slid off each other.)
-        dx, dy = qx - pos[0, p], qy - pos[1, p]
-        dist = math.sqrt(dx * dx + dy * dy)
-        if dist == 0.0:
-            return
-        nx, ny, C = dx / dist, dy / dist, -dist
     w0, w1 = (1.0 - t) * we, t * we
     W = wp + (1.0 - t) * w0 + t * w1
     contact_depth[p] += -C
@@ -446,6 +552,20 @@ def _resolve_contact(p, pos, prev, inv_mass, offsets, blob_of, awake, orient, ma
 
 
 @inline_kernel
+def _along(pos, e0, e1, px, py):
+    """Where p projects onto the line of edge e0→e1, as t (0 at x_0, 1 at x_1; 0 for a zero-length edge)."""
+    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
+    len2 = ex * ex + ey * ey
+    return ((px - pos[0, e0]) * ex + (py - pos[1, e0]) * ey) / len2 if len2 > 0.0 else 0.0
+
+
+@inline_kernel
+def _faces(pos, orient, e0, e1, vnx, vny):
+    """Whether edge e0→e1's outward normal (the sign of its ring's winding, orient) opposes v."""
+    return orient * ((pos[1, e1] - pos[1, e0]) * vnx - (pos[0, e1] - pos[0, e0]) * vny) < 0.0
+
+
+@inline_kernel
 def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
     """Move p by wp d and the edge ends by -w d: the relative motion changes by W d, momentum by 0."""
     pos[0, p] += wp * dx
@@ -457,25 +577,48 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 
 @stage_kernel
-def detect_blob_contacts(pos, inv_mass, offsets, awake, orient, center, radius, edges, pairs, partners, c_edge, c_t,
-                         c_depth2):
-    """Narrow phase: each vertex's contact (c_edge, c_t), after splitting deep pairs."""
-    _blob_bounds(pos, offsets, awake, False, center, radius, edges)
+def keep_blob_contacts(pos, vel, inv_mass, offsets, awake, orient, center, radius, edges, pairs, partners, everyone,
+                       reach_time, g, anchor, budget, moved, c_edge):
+    """Narrow phase, every iteration: split deeply overlapping pairs; then find the contacts (c_edge) of
+    every awake blob (everyone: at the start of the step), or only of those whose vertices went farther
+    than their budget from where theirs were found, or were split, and of their partners; the rest keep
+    theirs. `reach_time`: the time left in the step."""
+    B = offsets.shape[0] - 1
+    _moved(pos, anchor, offsets, awake, center, radius, moved)
+    outgrown = np.empty(B, np.bool_)
+    for b in range(B):
+        outgrown[b] = awake[b] and (everyone or moved[b] > budget[b])
     deep = np.empty(pairs.shape[0], dtype=np.bool_)
     _deep_pairs(pos, offsets, awake, pairs, center, radius, deep)
     for k in range(pairs.shape[0]):  # rare: separate them first, in pair order
         if deep[k]:
             _separate_deep(pos, inv_mass, offsets, pairs[k, 0], pairs[k, 1], center, radius)
-    _detect(pos, offsets, awake, orient, center, radius, edges, partners[0], partners[1], partners[2], deep, c_edge,
-            c_t, c_depth2)
+            outgrown[pairs[k, 0]] = outgrown[pairs[k, 1]] = True
+    if not outgrown.any():
+        return
+    stale = outgrown.copy()  # a partner's contacts with an outgrown blob are stale too
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, 0], pairs[k, 1]
+        stale[a] |= outgrown[b] and awake[a]
+        stale[b] |= outgrown[a] and awake[b]
+    _blob_bounds(pos, offsets, awake, False, center, radius, edges)
+    _renew(pos, vel, offsets, awake, radius, outgrown, reach_time, g, anchor, budget, moved)
+    # How far each blob may still go from here: its budget, plus what it has moved already (its
+    # anchor stays where it was, so its partners' contacts found before stay valid).
+    reach = np.zeros(B)  # a sleeping blob does not move
+    for b in range(B):
+        if awake[b]:
+            reach[b] = budget[b] + moved[b]
+    _detect(pos, offsets, awake, stale, orient, center, radius, edges, partners[0], partners[1], partners[2], deep,
+            reach, c_edge)
 
 
 @stage_kernel
-def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t,
+def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
                           blob_contact_depth, center, radius, up_x, up_y, strips, backward):
-    """Push every contact's vertex out of its edge, with friction (Gauss-Seidel, by strips; backward:
-    in reverse order)."""
-    _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_t, blob_contact_depth, center,
+    """Push every kept contact's vertex out of the other blob where it is inside, with friction
+    (Gauss-Seidel, by strips; backward: in reverse order)."""
+    _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, blob_contact_depth, center,
              radius, up_x, up_y, strips[0], strips[1], strips[2], backward)
 
 
@@ -514,51 +657,74 @@ def keep_impacts(pairs, blob_count, pair_records, keys, records, count):
     count[0] = n
 
 
+@kernel
+def _centre_motion_into(pos, vel, o, e, out):
+    """ring.centre_motion of ring o..e, written to out[:5] as cx, cy, v̄x, v̄y, k (a call, not
+    inlined: numba's parallel analysis cannot unpack its tuples inside a prange)."""
+    (out[0], out[1]), (out[2], out[3]), out[4] = centre_motion(pos, vel, o, e)
+
+
 @stage_kernel
-def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, blob_contact_depth, pairs,
-                     predicted, pair_records, rest_speed):
+def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, c_hit, pairs, predicted,
+                     pair_records, rest_speed):
     """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
     vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
     e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
     unit of its reduced mass μ = m_a m_b / (m_a + m_b); gravity does not change relative motion
     (P = 0). Δu goes to the two blobs as uniform velocity changes -Δu m_b/(m_a + m_b) n̄ and
-    +Δu m_a/(m_a + m_b) n̄: momentum is unchanged. Pairs run one after another, in pair order."""
-    for k in range(pairs.shape[0]):
+    +Δu m_a/(m_a + m_b) n̄: momentum is unchanged. Pairs run one after another, in pair order, on
+    each blob's centre motion (c, v̄, k = ½ mean |v|²), found once in parallel and carried through a
+    uniform change δ exactly: v̄ += δ, k += v̄ · δ + ½ |δ|²; the vertices get the sum at the end."""
+    B = offsets.shape[0] - 1
+    touching = np.zeros(pairs.shape[0], np.bool_)  # a contact between the two pushed this substep
+    for k in numba.prange(pairs.shape[0]):
         a, b = pairs[k, 0], pairs[k, 1]
-        if not (awake[a] and awake[b]):  # a sleeping blob does not move (sim/sleep.py)
+        if awake[a] and awake[b]:  # a sleeping blob does not move (sim/sleep.py)
+            for blob, other in ((a, b), (b, a)):
+                for p in range(offsets[blob], offsets[blob + 1]):
+                    for c in range(CONTACTS_PER_VERTEX):
+                        touching[k] |= c_hit[c, p] != 0 and blob_of[c_edge[c, p]] == other
+    motion = np.zeros((B, 5))  # cx, cy, v̄x, v̄y, k of the blobs in a touching pair
+    shift = np.zeros((B, 2))  # δ: the velocity change of each blob
+    involved = np.zeros(B, np.bool_)
+    for k in range(pairs.shape[0]):
+        if touching[k]:
+            involved[pairs[k, 0]] = involved[pairs[k, 1]] = True
+    for b in numba.prange(B):
+        if involved[b]:
+            _centre_motion_into(pos, vel, offsets[b], offsets[b + 1], motion[b])
+    for k in range(pairs.shape[0]):
+        if not touching[k]:
             continue
-        oa, ea, ob, eb = offsets[a], offsets[a + 1], offsets[b], offsets[b + 1]
-        touching = False
-        for p in range(oa, ea):
-            touching |= blob_contact_depth[p] > 0.0 and c_edge[p] >= 0 and blob_of[c_edge[p]] == b
-        for p in range(ob, eb):
-            touching |= blob_contact_depth[p] > 0.0 and c_edge[p] >= 0 and blob_of[c_edge[p]] == a
-        if not touching:
-            continue
-        ma, mb = (ea - oa) / inv_mass[oa], (eb - ob) / inv_mass[ob]
+        a, b = pairs[k, 0], pairs[k, 1]
+        ma = (offsets[a + 1] - offsets[a]) / inv_mass[offsets[a]]
+        mb = (offsets[b + 1] - offsets[b]) / inv_mass[offsets[b]]
         mu = ma * mb / (ma + mb)
-        ca, va, ka = centre_motion(pos, vel, oa, ea)
-        cb, vb, kb = centre_motion(pos, vel, ob, eb)
-        nx, ny = cb[0] - ca[0], cb[1] - ca[1]
+        nx, ny = motion[b, 0] - motion[a, 0], motion[b, 1] - motion[a, 1]
         length = math.sqrt(nx * nx + ny * ny)
         if length == 0.0:
             continue
         nx, ny = nx / length, ny / length
+        vax, vay, ka, vbx, vby, kb = motion[a, 2], motion[a, 3], motion[a, 4], motion[b, 2], motion[b, 3], motion[b, 4]
         # kinetic energy in the pair's centre-of-mass frame: Σ m k - ½ (m_a + m_b) |v_cm|², per μ
         before = (ma * predicted[a, 2] + mb * predicted[b, 2]
                   - 0.5 * ((ma * predicted[a, 0] + mb * predicted[b, 0]) ** 2
                            + (ma * predicted[a, 1] + mb * predicted[b, 1]) ** 2) / (ma + mb)) / mu
-        after = (ma * ka + mb * kb - 0.5 * ((ma * va[0] + mb * vb[0]) ** 2 + (ma * va[1] + mb * vb[1]) ** 2)
-                 / (ma + mb)) / mu
+        after = (ma * ka + mb * kb - 0.5 * ((ma * vax + mb * vbx) ** 2 + (ma * vay + mb * vby) ** 2) / (ma + mb)) / mu
         approach = (predicted[a, 0] - predicted[b, 0]) * nx + (predicted[a, 1] - predicted[b, 1]) * ny
-        u = (vb[0] - va[0]) * nx + (vb[1] - va[1]) * ny
+        u = (vbx - vax) * nx + (vby - vay) * ny
         du = bounce(pair_records, k, approach, before, 0.0, 0.0, u, after - 0.5 * u * u,
                     max(material[a, 2], material[b, 2]), rest_speed)
         if du != 0.0:
-            for p in range(oa, ea):
-                vel[0, p] -= du * mb / (ma + mb) * nx
-                vel[1, p] -= du * mb / (ma + mb) * ny
-            for p in range(ob, eb):
-                vel[0, p] += du * ma / (ma + mb) * nx
-                vel[1, p] += du * ma / (ma + mb) * ny
-
+            for blob, share in ((a, -mb / (ma + mb)), (b, ma / (ma + mb))):
+                dx, dy = du * share * nx, du * share * ny
+                motion[blob, 4] += motion[blob, 2] * dx + motion[blob, 3] * dy + 0.5 * (dx * dx + dy * dy)
+                motion[blob, 2] += dx
+                motion[blob, 3] += dy
+                shift[blob, 0] += dx
+                shift[blob, 1] += dy
+    for b in numba.prange(B):
+        if shift[b, 0] != 0.0 or shift[b, 1] != 0.0:
+            for p in range(offsets[b], offsets[b + 1]):
+                vel[0, p] += shift[b, 0]
+                vel[1, p] += shift[b, 1]

@@ -16,7 +16,7 @@ import numpy as np
 from ..colliders import COLLIDERS, SOLVERS
 from ..geometry import ring_next, signed_area
 from ..scene.schema import BlobDef, Scene, StaticDef
-from .collide import PAIRS_PER_BLOB
+from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
@@ -164,14 +164,18 @@ class State(NamedTuple):
     perimeter_lam: np.ndarray  # (B,) the total-length constraints' multipliers this substep (perimeter.py)
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
-    # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per iteration).
+    # Blob–blob scratch: broad phase (per substep), narrow-phase contacts (per step).
     center: np.ndarray  # (B, 2) m, vertex-average centres
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
     edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m),
     #                    1/|edge|² (1/m²)
-    c_edge: np.ndarray  # (N,) int64, vertex i's contact: the edge (by its first vertex) it must leave, or -1 ...
-    c_t: np.ndarray  # (N,) ... the barycentric position on it ...
-    c_depth2: np.ndarray  # (N,) m², ... and the squared depth (the deepest contact wins)
+    c_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64, vertex i's kept contacts (sim/collide.py): the nearest
+    #                    edge (by its first vertex) of a neighbouring blob, or -1; found once per step and followed
+    #                    along the ring ...
+    c_hit: np.ndarray  # (CONTACTS_PER_VERTEX, N) uint8 ... 1 where that contact has pushed this substep
+    anchor: np.ndarray  # (2, N) m, positions when the contacts were found ...
+    budget: np.ndarray  # (B,) m ... how far from there each blob's vertices may go before they are found again ...
+    moved: np.ndarray  # (B,) m ... and how far they have gone
     blob_contact_depth: np.ndarray  # (N,) m, a vertex's total push-out by blobs this substep
 
     @property
@@ -263,7 +267,9 @@ def build(scene: Scene) -> tuple[Model, State]:
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
                   spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
-                  c_edge=np.full(n, -1, dtype=np.int64), c_t=np.zeros(n), c_depth2=np.zeros(n),
+                  c_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
+                  c_hit=np.zeros((CONTACTS_PER_VERTEX, n), np.uint8),
+                  anchor=np.zeros((2, n)), budget=np.zeros(blobs), moved=np.zeros(blobs),
                   blob_contact_depth=np.zeros(n))
     return model, state
 

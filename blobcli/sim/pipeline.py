@@ -25,8 +25,8 @@ from .collide import (
     PAIRS_PER_BLOB,
     blob_restitution,
     carry_impacts,
-    detect_blob_contacts,
     find_blob_pairs,
+    keep_blob_contacts,
     keep_impacts,
     resolve_blob_contacts,
 )
@@ -79,10 +79,12 @@ def _advance(steps, state, model, settings, clock):
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
     awake_count = np.count_nonzero(s.awake)
     t = _lap(clock, -1, 0.0)
+    g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     for n in range(steps):
         if awake_count == 0:  # everything asleep: nothing moves, and only a mover could wake it
             continue
-        for _ in range(c.substeps):
+        found = False  # blob contacts are found once per step (and again when a blob outgrows them)
+        for sub in range(c.substeps):
             if c.damping > 0.0:
                 # (v - v_rigid) *= exp(-damping h)
                 damp_deformation(s.position, s.velocity, m.offsets, s.awake, damping)
@@ -96,7 +98,7 @@ def _advance(steps, state, model, settings, clock):
             t = _lap(clock, PREDICT, t)
             if c.collides:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
-                                                                 s.edges, s.blob_contact_depth)
+                                                                 s.edges, s.blob_contact_depth, s.c_hit)
                 if count > PAIRS_PER_BLOB * blob_count:
                     return n, TOO_MANY_PAIRS, count
                 pair_impact = carry_impacts(pairs, blob_count, s.pair_key, s.pair_impact, s.pair_count)
@@ -119,11 +121,14 @@ def _advance(steps, state, model, settings, clock):
                                  m.spring_compliance, s.spring_lam, h)
                 t = _lap(clock, AREA, t)
                 if pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
-                    detect_blob_contacts(s.position, m.inv_mass, m.offsets, s.awake, m.orient, s.center, s.radius,
-                                         s.edges, pairs, partners, s.c_edge, s.c_t, s.c_depth2)
+                    # contacts are found once per step, and again for blobs that went past their margin
+                    keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, s.awake, m.orient, s.center,
+                                       s.radius, s.edges, pairs, partners, not found, (c.substeps - sub) * h, g,
+                                       s.anchor, s.budget, s.moved, s.c_edge)
+                    found = True
                     t = _lap(clock, BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
-                                          m.orient, m.material, s.c_edge, s.c_t, s.blob_contact_depth, s.center,
+                                          m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
                                           s.radius, c.up_x, c.up_y, strips, it % 2 == 1)
                     t = _lap(clock, BLOB_RESOLVE, t)
                 if c.statics:  # one kernel per collider kind
@@ -140,7 +145,7 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, RESTITUTION, t)
             if c.collides:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
-                                 s.c_edge, s.blob_contact_depth, pairs, s.predicted, pair_impact, c.rest_speed)
+                                 s.c_edge, s.c_hit, pairs, s.predicted, pair_impact, c.rest_speed)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 t = _lap(clock, BLOB_RESTITUTION, t)
         if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake

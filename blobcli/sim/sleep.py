@@ -64,7 +64,7 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, s
                 vel[0, i] = vel[1, i] = 0.0
                 prev[0, i], prev[1, i] = pos[0, i], pos[1, i]
                 contact_depth[i] = 0.0
-                c_edge[i] = -1
+                c_edge[:, i] = -1
         awake[b] = keep_awake
     return np.count_nonzero(awake)
 

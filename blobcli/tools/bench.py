@@ -26,6 +26,8 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "core_ns_per_vertex_substep_1000": 20.0,
     "piled_ms_per_substep_1000": 4.0,
     "peer_speedup_piled": 10.0,
+    "peer_speedup_240_1x10": 5.0,  # the 100-blob pile at pymunk's settings: dt = 1/240 s, 1 substep, 10 iterations
+    "piled_over_apart_1000": 2.0,
     "one_blob_1000_steps_warm_s": 1.0,
     "one_blob_step_us": 1.5,
     "scaling_1000_over_100": 11.0,
@@ -93,11 +95,16 @@ def _median_time(fn, repeats: int, inner: int) -> float:
     return statistics.median(times)
 
 
-def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict:
+PEER_SETTINGS = f"dt = {1 / 240!r}\nsubsteps = 1\niterations = 10"  # pymunk's usual step and its 10 iterations
+
+
+def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int, settings_: str = "") -> dict:
+    """ms per step (and per substep, per vertex-substep) of `blobs` blobs, after `settle_steps` steps;
+    `settings_`: more [scene] lines."""
     from ..scene.schema import parse_scene
     from ..sim.model import build, build_params
     from ..sim.pipeline import advance, settings
-    scene = parse_scene(scene_text(blobs, layout), f"bench-{layout}-{blobs}")
+    scene = parse_scene(scene_text(blobs, layout, settings_), f"bench-{layout}-{blobs}")
     model, state = build(scene)
     params = build_params(scene)
     step_settings = settings(model, params)
@@ -265,9 +272,10 @@ def measure_sleeping(blobs: int, settle_steps: int, steps: int) -> dict:
             "ratio": sec_asleep / sec_awake}
 
 
-def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> dict | None:
+def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int, settings_: str = "") -> dict | None:
     """pymunk (Chipmunk2D): each blob a ring of 32 small circles joined by damped springs,
-    with spokes to a centre body; same counts, layouts, dt and substeps as blobsim."""
+    with spokes to a centre body, at its 10 iterations; same counts, layouts, dt and substeps as
+    blobsim (`settings_`: more [scene] lines)."""
     try:
         import pymunk
     except ImportError:
@@ -281,7 +289,7 @@ def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int) -> di
     from ..colliders import polygon_outline
     from ..scene.schema import parse_scene
     from ..sim.model import build
-    scene = parse_scene(scene_text(blobs, layout), "bench-peer")
+    scene = parse_scene(scene_text(blobs, layout, settings_), "bench-peer")
     for s in scene.statics:
         if s.kind == "box":
             wall = pymunk.Poly(space.static_body, [tuple(p) for p in polygon_outline(s)])
@@ -407,6 +415,10 @@ def run_bench(quick: bool = False) -> dict:
             peer = None if quick else measure_peer(n, layout, 3, settle)
             if peer:
                 results["peer"].append(peer)
+    if not quick:  # both at pymunk's own settings
+        ours, peer = (measure(100, "piled", 3, 4 * 120, PEER_SETTINGS) for measure in (measure_blobsim, measure_peer))
+        results["peer_240"] = {"ms_per_step": ours["ms_per_step"], "peer_ms_per_step": peer["ms_per_step"]} \
+            if peer else None
     results["core"] = measure_core(counts[-1], 10 if quick else 40)
     results["one_blob"] = measure_one_blob_step(repeats)
     results["c_reference"] = [measure_c_reference(counts[-1], s, i, 3 if quick else 10, 3 if quick else 5)
@@ -461,8 +473,16 @@ def format_bench(r: dict) -> str:
                                                              for n, ns in th["ns_by_threads"].items())
                  + f", {th['speedup']:.2f}x (target >= {t['thread_speedup_2']:g}x on 2)")
     if ("piled", 1000) in rows:
-        lines.append(f"piled substep at 1000 blobs: {rows[('piled', 1000)]['ms_per_substep']:.2f} ms "
-                     f"(target <= {t['piled_ms_per_substep_1000']:g})")
+        piled, apart = rows[("piled", 1000)], rows[("apart", 1000)]
+        lines.append(f"piled substep at 1000 blobs: {piled['ms_per_substep']:.2f} ms "
+                     f"(target <= {t['piled_ms_per_substep_1000']:g}), "
+                     f"{piled['ms_per_step'] / apart['ms_per_step']:.2f}x "
+                     f"the same blobs apart (target <= {t['piled_over_apart_1000']:g}x)")
+    if r.get("peer_240"):
+        p = r["peer_240"]
+        lines.append(f"100 blobs piled at dt = 1/240 s, 1 substep, 10 iterations: {p['ms_per_step']:.3f} ms/step vs "
+                     f"pymunk {p['peer_ms_per_step']:.3f}, {p['peer_ms_per_step'] / p['ms_per_step']:.1f}x "
+                     f"(target >= {t['peer_speedup_240_1x10']:g}x)")
     for layout in ("apart", "piled"):
         if (layout, 1000) in rows and (layout, 100) in rows:
             ratio = rows[(layout, 1000)]["ms_per_step"] / rows[(layout, 100)]["ms_per_step"]
