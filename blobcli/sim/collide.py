@@ -63,7 +63,7 @@ import numpy as np
 
 from ..jit import inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
-from .ring import centre_motion, next_in_ring, ring_contains, ring_radius
+from .ring import centre_motion, next_in_ring, prev_in_ring, ring_contains, ring_radius, vertex_normal
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
@@ -348,11 +348,7 @@ def _detect(pos, offsets, awake, stale, orient, center, radius, edges, start, pa
                 x, y = pos[0, i], pos[1, i]
                 if (x - cx) ** 2 + (y - cy) ** 2 > reach2:  # beyond B's bounding circle and the margin
                     continue
-                # p's outward normal, from its neighbours (sign from A's winding).
-                ip = i - 1 if i > oa else ea - 1
-                inx = i + 1 if i + 1 < ea else oa
-                vnx = orient[A] * (pos[1, inx] - pos[1, ip])
-                vny = -orient[A] * (pos[0, inx] - pos[0, ip])
+                vnx, vny = vertex_normal(pos, orient[A], i, oa, ea)
                 # Pass 1, over B's edges with no branches (it vectorizes): crossing parity,
                 # each edge's nearest point and whether its normal opposes p's.
                 crossings = 0
@@ -463,15 +459,12 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     # on an edge (0 < t < 1) or at a corner between two edges (t = 0 or 1). It steps only onto edges
     # facing p's own outward normal v (the rule of _detect): a vertex deep inside must not walk round
     # to the far side and be pushed out through it.
-    ia, oa_, ea_ = p - offsets[a], offsets[a], offsets[a + 1]
-    ip, inx = (p - 1 if ia > 0 else ea_ - 1), next_in_ring(p, oa_, ea_)
-    vnx = orient[a] * (pos[1, inx] - pos[1, ip])
-    vny = -orient[a] * (pos[0, inx] - pos[0, ip])
+    vnx, vny = vertex_normal(pos, orient[a], p, offsets[a], offsets[a + 1])
     e1 = next_in_ring(e0, o, e)
     t = _along(pos, e0, e1, px, py)
     for _ in range(e - o):
         if t < 0.0:
-            before = e0 - 1 if e0 > o else e - 1
+            before = prev_in_ring(e0, o, e)
             t_before = _along(pos, before, e0, px, py)
             if t_before < 1.0 and _faces(pos, orient[blob], before, e0, vnx, vny):
                 e0, e1, t = before, e0, t_before
@@ -498,7 +491,7 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         # that is the polygon's side, convex corner or reflex). Push toward the corner, along q - p
         # (along the normal of whichever edge came first, every push was turned the same way round
         # the ring, and stacked blobs slid off each other).
-        k, other = (e0, e0 - 1 if e0 > o else e - 1) if t == 0.0 else (e1, next_in_ring(e1, o, e))
+        k, other = (e0, prev_in_ring(e0, o, e)) if t == 0.0 else (e1, next_in_ring(e1, o, e))
         fx, fy = pos[0, other] - pos[0, k], pos[1, other] - pos[1, k]  # along the neighbouring edge, from k
         f = math.sqrt(fx * fx + fy * fy)
         if f > 0.0:

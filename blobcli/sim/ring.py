@@ -16,6 +16,19 @@ def next_in_ring(i, o, e):
 
 
 @inline_kernel
+def prev_in_ring(i, o, e):
+    """The vertex before i in the ring o..e-1 (the first follows the last)."""
+    return i - 1 if i > o else e - 1
+
+
+@inline_kernel
+def vertex_normal(pos, orient, i, o, e):
+    """Vertex i's outward normal (not unit): its neighbours' difference turned by the ring's winding."""
+    before, after = prev_in_ring(i, o, e), next_in_ring(i, o, e)
+    return orient * (pos[1, after] - pos[1, before]), -orient * (pos[0, after] - pos[0, before])
+
+
+@inline_kernel
 def ring_means(a, b, o, e):
     """The means over ring o..e of two (2, N) arrays (positions, velocities): (ā_x, ā_y, b̄_x, b̄_y)."""
     ax = ay = bx = by = 0.0
