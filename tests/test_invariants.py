@@ -29,7 +29,7 @@ from conftest import (
     self_intersects,
     simulate_steps,
 )
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from blobcli import blob_measures, build, build_params, step
@@ -57,6 +57,7 @@ compliance = {compliance}
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 48), pressure=st.floats(0.6, 1.4),
        compliance=st.sampled_from([0.0, 1e-5, 2e-4, 1e-2]), clockwise=st.booleans(),
        damping=st.sampled_from([0.0, 1.0, 20.0]))
+@example(seed=1, n=4, pressure=1.25, compliance=0.0, clockwise=False, damping=0.0)  # found by CI, 2026-11-24
 def test_free_blob_never_moves_its_centre_of_mass(seed, n, pressure, compliance, clockwise, damping):
     """However deformed and shaken, no internal stage propels a blob."""
     sc = scene(free_blob(n, pressure, compliance, clockwise, damping))
@@ -67,10 +68,15 @@ def test_free_blob_never_moves_its_centre_of_mass(seed, n, pressure, compliance,
     state.vel[:] = rng.normal(0, 2.0, state.vel.shape)
     state.vel[...] -= state.vel.mean(axis=0)  # zero momentum (equal vertex masses)
     c0 = com(state, model)
+    # Round-off in Σ m v grows with the speeds summed, and over 240 substeps of rotations and projections it
+    # reached 1.24e-12 per kg (seed 1, n = 4, pressure 1.25, compliance 0, rms speed 1.05 m/s; the same at the
+    # previous stop's code): the tolerance is 10 MOMENTUM_ROUNDOFF per m/s of rms vertex speed, still some ten
+    # orders below any stage that really propels a blob.
+    tolerance = 10.0 * MOMENTUM_ROUNDOFF * max(1.0, float(np.sqrt((state.vel ** 2).sum(axis=1).mean())))
     for _ in range(60):
         step(state, model, params)
         assert np.all(np.abs(com(state, model) - c0) <= COM_ROUNDOFF)
-        assert np.all(np.abs(momentum(state, model)) <= MOMENTUM_ROUNDOFF)
+        assert np.all(np.abs(momentum(state, model)) <= tolerance)
 
 
 @settings(max_examples=25, deadline=None)
