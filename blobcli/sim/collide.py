@@ -658,8 +658,29 @@ def _centre_motion_into(pos, vel, o, e, out):
 
 
 @stage_kernel
-def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, c_hit, pairs, predicted,
-                     pair_records, rest_speed):
+def _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, start, partner, pair_of):
+    """Whether a contact between the two blobs of each pair pushed this substep, both awake (a
+    sleeping blob does not move: sim/sleep.py). Each blob reads its own vertices' contacts once and
+    marks its own partner slots (start, partner, pair_of: CSR, see _partners), in parallel."""
+    pushed = np.zeros(partner.shape[0], np.bool_)
+    for a in numba.prange(offsets.shape[0] - 1):
+        for p in range(offsets[a], offsets[a + 1]):
+            for c in range(CONTACTS_PER_VERTEX):
+                if c_hit[c, p] != 0:
+                    other = blob_of[c_edge[c, p]]
+                    for j in range(start[a], start[a + 1]):  # a blob has a few partners
+                        pushed[j] |= partner[j] == other
+    touching = np.zeros(pairs.shape[0], np.bool_)
+    for j in range(partner.shape[0]):
+        touching[pair_of[j]] |= pushed[j]
+    for k in range(pairs.shape[0]):
+        touching[k] &= awake[pairs[k, 0]] and awake[pairs[k, 1]]
+    return touching
+
+
+@stage_kernel
+def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, c_hit, pairs, partners,
+                     predicted, pair_records, rest_speed):
     """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
     vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
     e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
@@ -669,14 +690,7 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_ed
     each blob's centre motion (c, v̄, k = ½ mean |v|²), found once in parallel and carried through a
     uniform change δ exactly: v̄ += δ, k += v̄ · δ + ½ |δ|²; the vertices get the sum at the end."""
     B = offsets.shape[0] - 1
-    touching = np.zeros(pairs.shape[0], np.bool_)  # a contact between the two pushed this substep
-    for k in numba.prange(pairs.shape[0]):
-        a, b = pairs[k, 0], pairs[k, 1]
-        if awake[a] and awake[b]:  # a sleeping blob does not move (sim/sleep.py)
-            for blob, other in ((a, b), (b, a)):
-                for p in range(offsets[blob], offsets[blob + 1]):
-                    for c in range(CONTACTS_PER_VERTEX):
-                        touching[k] |= c_hit[c, p] != 0 and blob_of[c_edge[c, p]] == other
+    touching = _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, partners[0], partners[1], partners[2])
     motion = np.zeros((B, 5))  # cx, cy, v̄x, v̄y, k of the blobs in a touching pair
     shift = np.zeros((B, 2))  # δ: the velocity change of each blob
     involved = np.zeros(B, np.bool_)

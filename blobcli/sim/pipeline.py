@@ -145,7 +145,7 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, RESTITUTION, t)
             if c.collides:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
-                                 s.c_edge, s.c_hit, pairs, s.predicted, pair_impact, c.rest_speed)
+                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 t = _lap(clock, BLOB_RESTITUTION, t)
         if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake
