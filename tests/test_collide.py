@@ -16,6 +16,7 @@ from conftest import (
     REST_CREEP,
     SEPARATION_MOMENTUM,
     STACK_FLICKER,
+    deepest_overlap,
     momentum,
     scene,
     self_intersects,
@@ -26,14 +27,12 @@ from hypothesis import strategies as st
 
 import blobcli.sim.model
 from blobcli import blob_measures, build, build_params, load_scene, step
-from blobcli.geometry import depth_inside_polygon
 from blobcli.jit import parallel
 from blobcli.sim.collide import (
     BLOBS_PER_STRIP,
     MAX_STRIPS,
     _find_pairs,
     _strips,
-    find_blob_pairs,
 )
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -98,18 +97,6 @@ def settle(name, steps):
     """A shipped scene run `steps` steps with sleeping off: these tests are of the physics at rest."""
     text = (ROOT / "scenes" / f"{name}.toml").read_text()
     return simulate_steps(text.replace("[scene]\n", "[scene]\nsleep = false\n", 1), steps)
-
-
-def deepest_overlap(state, model):
-    pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
-                                state.blob_contact_depth, state.c_hit)
-    worst = 0.0
-    for a, b in pairs:
-        for x, y in ((a, b), (b, a)):
-            ring = state.pos[model.offsets[x]:model.offsets[x + 1]]
-            other = state.pos[model.offsets[y]:model.offsets[y + 1]]
-            worst = max(worst, depth_inside_polygon(ring, other).max())
-    return worst
 
 
 @pytest.mark.slow

@@ -3,7 +3,7 @@
 import h5py
 import numpy as np
 import pytest
-from conftest import PILE_ASLEEP, PILE_REST_CENTRE, PILE_REST_VERTEX, blobsim, scene
+from conftest import BLOB_PENETRATION, PILE_ASLEEP, PILE_REST_CENTRE, PILE_REST_VERTEX, blobsim, deepest_overlap, scene
 
 from blobcli import build, build_params
 from blobcli.sim.pipeline import advance
@@ -36,12 +36,20 @@ size = [0.2, 4.0]
 LATE_BLOB = """
 [[blob]]
 name = "late"
-center = [0.2, 250.0]
+center = [7.5, 4.4]
 radius = 0.2
 vertices = 16
-"""  # falls 247 m onto the top of a column: lands on the pile about 7.1 s after the start, at 70 m/s; the pile
-#     sleeps from about 5.5 s. (Dropped into the gap between two columns instead, it wedges them apart and
-#     squeezes down to the floor, or sticks, depending on the gap's width to the millimetre.)
+velocity = [-1.0, 0.0]
+[[static]]
+kind = "box"
+center = [4.3, 4.1]
+size = [7.4, 0.2]
+friction = 0.0
+static_friction = 0.0
+"""  # slides along a frictionless ledge above the pile's right wall at 1 m/s, leaves it at x = 0.6 about 6.9 s
+#     after the start and lands on the pile (asleep from about 5.5 s) at some 8 m/s, about 7.5 s after the start.
+#     (Dropped from 247 m to arrive as late, it hit at 70 m/s and crushed the top blob of its column: where it
+#     ended, on the column or wedged into a gap, turned on millimetres.)
 
 
 def run(text, seconds):
@@ -83,13 +91,15 @@ def test_a_blob_landing_on_a_sleeping_pile_wakes_it():
     awake_before_landing = woken = None
     for second in range(1, 13):
         advance(state, model, params, 60)
-        if second == 6:  # the pile has slept; the late blob is still falling, far above it
+        if second == 6:  # the pile has slept; the late blob is still on its ledge
             awake_before_landing = state.awake.copy()
         if second == 8:  # it has landed: its island is awake
             woken = state.awake.copy()
     assert awake_before_landing[late] and awake_before_landing.sum() == 1
     assert woken.sum() > 1
-    assert state.pos[model.offsets[late]:model.offsets[late + 1], 1].min() > 0.2  # on the pile, not through it
+    top_row = max(state.pos[model.offsets[b]:model.offsets[b + 1], 1].mean() for b in range(late))
+    assert state.pos[model.offsets[late]:model.offsets[late + 1], 1].mean() > top_row  # on the pile ...
+    assert deepest_overlap(state, model) < BLOB_PENETRATION  # ... not in a blob
     assert state.awake.sum() == 0  # and the whole heap sleeps again
 
 

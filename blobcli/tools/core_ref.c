@@ -11,7 +11,7 @@
 #include <math.h>
 
 #define SWEEPS 2
-#define TOTAL_STEP 0.2
+#define TOTAL_STEP 0.4
 #define NO_BOUNCE (-INFINITY)
 
 /* Python's max(a, b) and min(a, b): the first argument unless the second is strictly beyond it */
