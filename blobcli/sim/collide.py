@@ -615,6 +615,108 @@ def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, 
              radius, up_x, up_y, strips[0], strips[1], strips[2], backward)
 
 
+VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
+
+
+@stage_kernel
+def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+                            blob_contact_depth, h):
+    """Contact velocities between blobs: at every contact that pushed this substep (c_hit), the
+    relative velocity of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q,
+    loses its approach along the edge's outward normal n (u · n < 0: one-sided, as the push) and its
+    tangential part u_t by Coulomb's rule at velocity level: all of it if |u_t| h <= μ_s D (static),
+    else μ_k D / h of it, D the vertex's push-out summed over the substep (the rule of the push).
+
+    Why: the push and the friction act on positions, one contact after another, and a vertex in a
+    pile is in several (two rings interpenetrating as a zipper: p in the other's edge, the edge's
+    ends in p's). Each iteration the skin pulls such a vertex ~1 mm along the contact and the area
+    stage ~1 mm into it, and the contacts put it back; what the Gauss-Seidel order leaves is a
+    sawtooth of 0.05-0.15 mm per substep, which v = (x - x_prev) / h reads as 20-40 mm/s in a pile at
+    rest. Removing the relative velocity each contact should not have, at velocity level, removes
+    most of it (docs/physics.md, "Known limits").
+
+    The impulse that zeroes the component of u along a unit vector d is J = -(u · d) / W, with
+    W = w_p + ((1 - t)² + t²) w_e the generalized inverse mass (as for the push), applied as
+    Δv_p = w_p J d, Δv_0 = -(1 - t) w_e J d, Δv_1 = -t w_e J d: Σ m Δv = 0, so momentum is unchanged.
+    Jacobi: every contact's J is found from the same velocities, then scaled by 1 / k, k the most
+    contacts any of its three vertices is in (so that a vertex is not over-corrected; one factor per
+    contact keeps momentum exact), and the results are added in vertex order: the same for any thread
+    count. A sleeping blob does not move (w_e = 0)."""
+    N = pos.shape[1]
+    # The pushed contacts, as vertex p and slot c, and how many of them each vertex is in.
+    share = np.zeros(N)
+    which = np.empty((CONTACTS_PER_VERTEX * N, 3), np.int64)  # p, e0, e1 of the first K rows
+    K = 0
+    for p in range(N):
+        for c in range(CONTACTS_PER_VERTEX):
+            if c_hit[c, p] != 0 and awake[blob_of[p]]:
+                e0 = c_edge[c, p]
+                b = blob_of[e0]
+                e1 = next_in_ring(e0, offsets[b], offsets[b + 1])
+                which[K, 0], which[K, 1], which[K, 2] = p, e0, e1
+                share[p] += 1.0
+                share[e0] += 1.0
+                share[e1] += 1.0
+                K += 1
+    # Positions do not change in this stage, so each contact's geometry is found once: t, n, the
+    # scale 1 / (W k), the edge's inverse mass, and the static and kinetic limits μ_s D / h, μ_k D / h.
+    geometry = np.empty((K, 7))
+    for k in numba.prange(K):
+        _contact_geometry(which[k, 0], which[k, 1], which[k, 2], pos, inv_mass, blob_of, awake, orient, material,
+                          blob_contact_depth, h, share, geometry[k])
+    impulse = np.empty((K, 2))
+    for _ in range(VELOCITY_PASSES):
+        for k in numba.prange(K):  # every impulse from the same velocities
+            impulse[k, 0], impulse[k, 1] = _contact_impulse(which[k, 0], which[k, 1], which[k, 2], vel, geometry[k])
+        for k in range(K):  # then added, in contact order
+            p, e0, e1 = which[k, 0], which[k, 1], which[k, 2]
+            t, we, jx, jy = geometry[k, 0], geometry[k, 4], impulse[k, 0], impulse[k, 1]
+            vel[0, p] += inv_mass[p] * jx
+            vel[1, p] += inv_mass[p] * jy
+            vel[0, e0] -= (1.0 - t) * we * jx
+            vel[1, e0] -= (1.0 - t) * we * jy
+            vel[0, e1] -= t * we * jx
+            vel[1, e1] -= t * we * jy
+
+
+@inline_kernel
+def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material, depth, h, share, out):
+    """out = t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h of the contact of vertex p with edge
+    e0→e1 (see blob_contact_velocities); a zero-length edge gets scale 0 (no impulse)."""
+    a, blob = blob_of[p], blob_of[e0]
+    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
+    len2 = ex * ex + ey * ey
+    out[:] = 0.0
+    if len2 == 0.0:
+        return
+    t = min(max(((pos[0, p] - pos[0, e0]) * ex + (pos[1, p] - pos[1, e0]) * ey) / len2, 0.0), 1.0)
+    length = math.sqrt(len2)
+    we = inv_mass[e0] if awake[blob] else 0.0
+    W = inv_mass[p] + ((1.0 - t) ** 2 + t * t) * we
+    D = depth[p] / h
+    out[0], out[1], out[2] = t, orient[blob] * ey / length, -orient[blob] * ex / length
+    out[3] = 1.0 / (W * max(share[p], share[e0], share[e1]))
+    out[4] = we
+    out[5] = math.sqrt(material[a, 0] * material[blob, 0]) * D
+    out[6] = math.sqrt(material[a, 1] * material[blob, 1]) * D
+
+
+@inline_kernel
+def _contact_impulse(p, e0, e1, vel, g):
+    """The impulse J (see blob_contact_velocities) of a contact with geometry g (_contact_geometry)."""
+    t, nx, ny = g[0], g[1], g[2]
+    ux = vel[0, p] - (1.0 - t) * vel[0, e0] - t * vel[0, e1]
+    uy = vel[1, p] - (1.0 - t) * vel[1, e0] - t * vel[1, e1]
+    un = ux * nx + uy * ny
+    tx, ty = ux - un * nx, uy - un * ny
+    speed = math.sqrt(tx * tx + ty * ty)
+    cut = 0.0
+    if speed > 0.0:
+        cut = 1.0 if speed <= g[5] else min(g[6] / speed, 1.0)
+    approach = min(un, 0.0)
+    return -(approach * nx + cut * tx) * g[3], -(approach * ny + cut * ty) * g[3]
+
+
 @kernel
 def carry_impacts(pairs, blob_count, keys, records, count):
     """The impact records (integrate.bounce) of this substep's pairs: each pair's from the kept ones

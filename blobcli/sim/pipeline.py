@@ -23,6 +23,7 @@ from ..jit import build, inline_kernel, stage_kernel
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
 from .collide import (
     PAIRS_PER_BLOB,
+    blob_contact_velocities,
     blob_restitution,
     carry_impacts,
     find_blob_pairs,
@@ -38,9 +39,9 @@ from .sleep import update_sleep
 from .statics import collide_statics
 
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
-          "velocities", "restitution", "blob restitution", "sleep")
+          "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
 (DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION,
- BLOB_RESTITUTION, SLEEP) = range(len(STAGES))
+ BLOB_VELOCITIES, BLOB_RESTITUTION, SLEEP) = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 
@@ -143,6 +144,10 @@ def _advance(steps, state, model, settings, clock):
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
                             s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, RESTITUTION, t)
+            if pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
+                blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
+                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h)
+                t = _lap(clock, BLOB_VELOCITIES, t)
             if c.collides:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
                                  s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed)
