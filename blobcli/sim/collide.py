@@ -534,14 +534,26 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     slip = math.sqrt(tx * tx + ty * ty)
     cut = 0.0
     if slip > 0.0:
-        mu_s = math.sqrt(material[a, 0] * material[blob, 0])
-        mu_k = math.sqrt(material[a, 1] * material[blob, 1])
         # Static: undo the whole slip; kinetic: cut it by μ_k D (|f_t| <= μ |f_n|), D the push-out summed
         # over the substep, as in the static rule and at the static colliders. (With this iteration's push
         # -C instead, a contact going from stick to slip suddenly kept millimetres of slip that
         # v = (x - x_prev) / h turned into vertex spikes of 0.1-0.5 m/s in a resting pile.)
-        cut = 1.0 if slip <= mu_s * contact_depth[p] else min(mu_k * contact_depth[p] / slip, 1.0)
+        static, kinetic = _friction_limits(material, a, blob, contact_depth[p])
+        cut = _coulomb_cut(slip, static, kinetic)
     _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
+
+
+@inline_kernel
+def _friction_limits(material, a, b, D):
+    """(μ_s D, μ_k D) of a contact between blobs a and b, their coefficients combined as √(μ_a μ_b)."""
+    return math.sqrt(material[a, 0] * material[b, 0]) * D, math.sqrt(material[a, 1] * material[b, 1]) * D
+
+
+@inline_kernel
+def _coulomb_cut(slip, static, kinetic):
+    """The share of a slip that Coulomb's rule removes: all of it within the static limit, else the
+    kinetic limit's worth (at most all)."""
+    return 1.0 if slip <= static else min(kinetic / slip, 1.0)
 
 
 @inline_kernel
@@ -697,8 +709,7 @@ def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material
     out[0], out[1], out[2] = t, orient[blob] * ey / length, -orient[blob] * ex / length
     out[3] = 1.0 / (W * max(share[p], share[e0], share[e1]))
     out[4] = we
-    out[5] = math.sqrt(material[a, 0] * material[blob, 0]) * D
-    out[6] = math.sqrt(material[a, 1] * material[blob, 1]) * D
+    out[5], out[6] = _friction_limits(material, a, blob, D)
 
 
 @inline_kernel
@@ -712,7 +723,7 @@ def _contact_impulse(p, e0, e1, vel, g):
     speed = math.sqrt(tx * tx + ty * ty)
     cut = 0.0
     if speed > 0.0:
-        cut = 1.0 if speed <= g[5] else min(g[6] / speed, 1.0)
+        cut = _coulomb_cut(speed, g[5], g[6])
     approach = min(un, 0.0)
     return -(approach * nx + cut * tx) * g[3], -(approach * ny + cut * ty) * g[3]
 
