@@ -217,8 +217,10 @@ def test_serial_and_parallel_stage_builds_give_the_same_bits(monkeypatch):
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 700))
 def test_resolution_strips_partition_the_blobs_by_x(seed, blobs):
-    center = np.random.default_rng(seed).uniform(-5.0, 5.0, (blobs, 2))
-    strip_of, start, members = _strips(center)
+    rng = np.random.default_rng(seed)
+    center = rng.uniform(-5.0, 5.0, (blobs, 2))
+    pairs = np.sort(rng.integers(0, blobs, (blobs, 2)), axis=1)
+    strip_of, start, members, crossing, far = _strips(center, pairs)
     assert len(start) - 1 == max(1, min(MAX_STRIPS, blobs // BLOBS_PER_STRIP))
     assert sorted(members) == list(range(blobs))  # every blob in exactly one strip ...
     for s in range(len(start) - 1):
@@ -227,3 +229,7 @@ def test_resolution_strips_partition_the_blobs_by_x(seed, blobs):
         assert (strip_of[inside] == s).all()
     by_x = np.argsort(center[:, 0], kind="stable")
     assert (np.diff(strip_of[by_x]) >= 0).all()  # strips follow x
+    apart = np.abs(strip_of[pairs[:, 0]] - strip_of[pairs[:, 1]])
+    assert far == bool((apart >= 2).any())  # the resolution scans for contacts across far strips only if so ...
+    assert list(crossing) == [bool((apart[(pairs == b).any(axis=1)] > 0).any()) for b in range(blobs)]  # ... and
+    #                                                 across neighbouring strips only in blobs that cross
