@@ -27,3 +27,11 @@ def test_quick_bench_runs_and_reports_every_figure(tmp_path):
                  "one-blob points of 10 steps: blobsim sweep", "thread"):
         assert line in r.stdout
     assert ("core vs a plain C loop" in r.stdout) or ("C reference: skipped (no C compiler" in r.stdout)
+
+
+def test_ab_step_refuses_a_tree_without_blobcli(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "blobcli.tools.ab_step", str(tmp_path)], capture_output=True,
+                          text=True)
+    assert done.returncode == 2
+    assert f"{tmp_path / 'blobcli'}: not a blobcli package" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -1,0 +1,82 @@
+"""`python -m blobcli.tools.ab_step OTHER`: this tree's step against another tree's, in one process.
+
+On a shared, noisy machine two separate runs of `blobsim bench` differ by more than most changes
+do (the same 1,000 blobs apart: 7.2 and 11.6 ms per step ten minutes apart). So the other tree's
+package (OTHER/blobcli, e.g. a `git worktree` of the commit before) is copied and imported under
+another name, both build the same scene (bench.scene_text), settle it, and then the same steps are
+timed from the same saved state, the two builds alternating round by round. It prints each build's
+median and the ratio per round, and whether the two give the same bits (a change meant to be faster
+only should). Figures, not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def _runner(package: str, blobs: int, layout: str, lines: str, settle: int, steps: int):
+    """A function that restores the settled state, times `steps` steps and returns (seconds, positions)."""
+    schema = importlib.import_module(f"{package}.scene.schema")
+    bench = importlib.import_module(f"{package}.tools.bench")
+    model_module = importlib.import_module(f"{package}.sim.model")
+    pipeline = importlib.import_module(f"{package}.sim.pipeline")
+    scene = schema.parse_scene(bench.scene_text(blobs, layout, lines), f"ab-{layout}-{blobs}")
+    model, state = model_module.build(scene)
+    params = model_module.build_params(scene)
+    settings = pipeline.settings(model, params)
+    pipeline.advance(state, model, params, settle, step_settings=settings)
+    settled = [a.copy() for a in state]
+
+    def run():
+        for array, saved in zip(state, settled):
+            array[...] = saved
+        t0 = time.perf_counter()
+        pipeline.advance(state, model, params, steps, step_settings=settings)
+        return time.perf_counter() - t0, state.position.copy()
+    return run
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("other", type=Path, help="the other source tree (holding blobcli/)")
+    ap.add_argument("--blobs", type=int, default=1000)
+    ap.add_argument("--layout", choices=("apart", "piled"), default="piled")
+    ap.add_argument("--settle", type=int, default=120, help="steps before timing (the bench's pile: 120)")
+    ap.add_argument("--steps", type=int, default=10, help="steps per timed round")
+    ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--scene-lines", default="", help=r"more [scene] lines, e.g. 'iterations = 10\nsubsteps = 1'")
+    args = ap.parse_args(argv)
+    source = args.other / "blobcli"
+    if not (source / "sim" / "pipeline.py").is_file():
+        print(f"ab_step: {source}: not a blobcli package", file=sys.stderr)
+        return 2
+    lines = args.scene_lines.replace("\\n", "\n")
+    with tempfile.TemporaryDirectory(prefix="blobsim-ab-") as tmp:
+        shutil.copytree(source, Path(tmp) / "blobcli_other", ignore=shutil.ignore_patterns("__pycache__"))
+        sys.path.insert(0, tmp)
+        runs = {name: _runner(package, args.blobs, args.layout, lines, args.settle, args.steps)
+                for name, package in (("this", "blobcli"), ("other", "blobcli_other"))}
+        (_, here), (_, there) = runs["this"](), runs["other"]()  # also compiles both
+        times = {"this": [], "other": []}
+        for _ in range(args.rounds):
+            for name, run in runs.items():
+                times[name].append(run()[0] / args.steps)
+    print(f"{args.blobs} blobs {args.layout}, settled {args.settle} steps, {args.rounds} rounds of {args.steps} steps")
+    print(f"same bits after {args.steps} steps: {here.tobytes() == there.tobytes()}")
+    for name, t in times.items():
+        print(f"{name:>5s}: {1e3 * statistics.median(t):.3f} ms per step (median), {1e3 * min(t):.3f} (min)")
+    ratios = [a / b for a, b in zip(times["this"], times["other"])]
+    print(f"this / other: {statistics.median(ratios):.3f} (median of rounds; each: "
+          + " ".join(f"{r:.2f}" for r in ratios) + ")")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
