@@ -414,12 +414,13 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
     result is the same for any number of threads. Contacts across strips are looked for only where
     the pairs say there are some (crossing, far: see _strips)."""
     strips = strip_start.shape[0] - 1
-    for q in range(pos.shape[1] if far else 0):
-        p = pos.shape[1] - 1 - q if backward else q
-        for c in range(CONTACTS_PER_VERTEX):
-            if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
-                _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                 c_hit, contact_depth, center, radius, up_x, up_y)
+    if far:
+        for q in range(pos.shape[1]):
+            p = pos.shape[1] - 1 - q if backward else q
+            for c in range(CONTACTS_PER_VERTEX):
+                if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
+                    _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+                                     c_hit, contact_depth, center, radius, up_x, up_y)
     for parity in range(2):
         for q in numba.prange((strips - parity) // 2):
             s = parity + 2 * q
