@@ -48,12 +48,22 @@ c_A + (c_B - c_A) r_A / (r_A + r_B); each blob's vertices beyond it are put back
 both blobs are shifted by one common Δx that cancels the momentum this added.
 
 Friction (with each push, Müller et al. 2020): Coulomb on the relative tangential slip Δx_t of
-vertex and edge point since the substep began, with the same generalized masses as the push:
-undone entirely if |Δx_t| <= μ_s D, where D is the vertex's total push-out this substep
-(static); else cut by μ_k D (kinetic). It is the rule of the static contacts,
-and it runs inside the iteration so that the statics, which come after it, always have the
-last word (friction applied after them pushed a crushed blob through a wall). Coefficients of
-the two blobs combine as √(μ_a μ_b).
+the vertex against the other blob, with the same generalized masses as the push: undone entirely
+if |Δx_t| <= μ_s D, where D is the vertex's total push-out this substep (static); else cut by
+μ_k D (kinetic). It runs inside the iteration so that the statics, which come after it, always
+have the last word (friction applied after them pushed a crushed blob through a wall).
+Coefficients of the two blobs combine as √(μ_a μ_b).
+
+The slip is measured from a stick point, a material point of the other blob (an edge and t along
+it: stick_edge, stick_t) that the contact keeps while it holds: set where the vertex touches after
+its first push, and again after every kinetic slide; kept from substep to substep and step to
+step (a new detection carries it to the contact with the same blob); let go when the contact
+does not push for a whole substep (release_sticks). Measured from where the substep began
+instead (the statics' rule), static friction held only within a substep: what the Gauss-Seidel
+order left (the contacts of the edge's own vertices, solved after this one, move the edge point
+on) was never undone, so a vertex wedged in a pile crept 0.016 mm per step along its contact for
+a quarter of a second and snapped back 0.24 mm, and piles of 80 and 120 blobs kept vertices
+flickering at 24-34 mm/s long after they had settled (docs/physics.md, "Friction between blobs").
 """
 
 import math
@@ -317,7 +327,8 @@ def _renew(pos, vel, offsets, awake, radius, outgrown, reach_time, g, anchor, bu
 
 
 @stage_kernel
-def _detect(pos, offsets, awake, stale, orient, center, radius, edges, start, partner, pair_of, deep, reach, c_edge):
+def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, start, partner, pair_of, deep, reach,
+            c_edge, stick_edge, stick_t):
     """For every vertex of a stale blob A: its contacts (the edge), at most CONTACTS_PER_VERTEX, each
     with another blob, nearest first (inside before outside): every blob B whose boundary the vertex
     is inside of, or outside of by less than the pair's margin reach[A] + reach[B], how far each may
@@ -340,9 +351,13 @@ def _detect(pos, offsets, awake, stale, orient, center, radius, edges, start, pa
         opposing_bits = np.empty(longest, np.int64)  # bits, or NO_EDGE where the normal does not oppose
         oa, ea = offsets[A], offsets[A + 1]
         key = np.empty((CONTACTS_PER_VERTEX, ea - oa))  # signed distance: < 0 inside
+        # the stick points of the contacts found before, to carry over to the same blobs' contacts
+        old_edge = np.empty((CONTACTS_PER_VERTEX, ea - oa), np.int64)
+        old_t = np.empty((CONTACTS_PER_VERTEX, ea - oa))
         for i in range(oa, ea):
             for s in range(CONTACTS_PER_VERTEX):
-                c_edge[s, i] = -1
+                old_edge[s, i - oa], old_t[s, i - oa] = stick_edge[s, i], stick_t[s, i]
+                c_edge[s, i] = stick_edge[s, i] = -1
         for k in range(start[A], start[A + 1]):
             if deep[pair_of[k]]:
                 continue
@@ -396,11 +411,19 @@ def _detect(pos, offsets, awake, stale, orient, center, radius, edges, start, pa
                         edge, c_edge[s, i] = c_edge[s, i], edge
                         if edge < 0:
                             break
+        for i in range(oa, ea):
+            for s in range(CONTACTS_PER_VERTEX):
+                if c_edge[s, i] < 0:
+                    continue
+                for r in range(CONTACTS_PER_VERTEX):
+                    if old_edge[r, i - oa] >= 0 and blob_of[old_edge[r, i - oa]] == blob_of[c_edge[s, i]]:
+                        stick_edge[s, i], stick_t[s, i] = old_edge[r, i - oa], old_t[r, i - oa]
 
 
 @stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, contact_depth,
-             center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward):
+             center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
+             stick_t):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
     A contact moves only its own two blobs, so contacts within different strips are
@@ -420,25 +443,25 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             for c in range(CONTACTS_PER_VERTEX):
                 if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
                     _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                     c_hit, contact_depth, center, radius, up_x, up_y)
+                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t)
     for parity in range(2):
         for q in numba.prange((strips - parity) // 2):
             s = parity + 2 * q
             _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                              c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
-                             crossing, backward)
+                             crossing, backward, stick_edge, stick_t)
     for parity in range(2):
         for q in numba.prange((strips - parity + 1) // 2):
             s = parity + 2 * q
             _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                              c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
-                             crossing, backward)
+                             crossing, backward, stick_edge, stick_t)
 
 
 @inline_kernel
 def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                      c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing,
-                     backward):
+                     backward, stick_edge, stick_t):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
     backward: each strip's in reverse order."""
@@ -455,12 +478,12 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, ori
                 for c in range(CONTACTS_PER_VERTEX):
                     if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
                         _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                         c_hit, contact_depth, center, radius, up_x, up_y)
+                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t)
 
 
 @inline_kernel
 def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                     contact_depth, center, radius, up_x, up_y):
+                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
     inside there, push it out, with friction."""
     e0 = c_edge[s, p]
@@ -538,12 +561,19 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     w0, w1 = (1.0 - t) * we, t * we
     W = wp + (1.0 - t) * w0 + t * w1
     contact_depth[p] += -C
-    # Friction on the relative slip r of p against q since the substep began. The normal
-    # push changes r by -C n only, so r's tangential part t_r can be read before it, and
-    # push and friction go in one move: Δ = (-C n - cut t_r) / W (one dependent chain of
-    # square roots and divisions per contact instead of two: this loop is sequential).
-    rx = (pos[0, p] - prev[0, p]) - (1.0 - t) * (pos[0, e0] - prev[0, e0]) - t * (pos[0, e1] - prev[0, e1])
-    ry = (pos[1, p] - prev[1, p]) - (1.0 - t) * (pos[1, e0] - prev[1, e0]) - t * (pos[1, e1] - prev[1, e1])
+    # Friction on the relative slip r of p: from its stick point on the other blob, or for a contact
+    # that has none yet, against q since the substep began. The normal push changes r by -C n only,
+    # so r's tangential part t_r can be read before it, and push and friction go in one move:
+    # Δ = (-C n - cut t_r) / W (one dependent chain of square roots and divisions per contact
+    # instead of two: this loop is sequential).
+    a0 = stick_edge[s, p]
+    if a0 >= 0:  # held at a stick point: the slip is p's way from it
+        a1, ta = next_in_ring(a0, o, e), stick_t[s, p]
+        rx = pos[0, p] - (1.0 - ta) * pos[0, a0] - ta * pos[0, a1]
+        ry = pos[1, p] - (1.0 - ta) * pos[1, a0] - ta * pos[1, a1]
+    else:
+        rx = (pos[0, p] - prev[0, p]) - (1.0 - t) * (pos[0, e0] - prev[0, e0]) - t * (pos[0, e1] - prev[0, e1])
+        ry = (pos[1, p] - prev[1, p]) - (1.0 - t) * (pos[1, e0] - prev[1, e0]) - t * (pos[1, e1] - prev[1, e1])
     rn = rx * nx + ry * ny
     tx, ty = rx - rn * nx, ry - rn * ny
     slip = math.sqrt(tx * tx + ty * ty)
@@ -556,6 +586,8 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         static, kinetic = _friction_limits(material, a, blob, contact_depth[p])
         cut = _coulomb_cut(slip, static, kinetic)
     _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
+    if a0 < 0 or cut < 1.0:  # held from now on where it touches now (after a slide: where it slid to)
+        stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, pos[0, p], pos[1, p]), 0.0), 1.0)
 
 
 @inline_kernel
@@ -597,8 +629,8 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 
 @stage_kernel
-def keep_blob_contacts(pos, vel, inv_mass, offsets, awake, orient, center, radius, edges, pairs, partners, everyone,
-                       reach_time, g, anchor, budget, moved, c_edge):
+def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, center, radius, edges, pairs, partners,
+                       everyone, reach_time, g, anchor, budget, moved, c_edge, stick_edge, stick_t):
     """Narrow phase, every iteration: split deeply overlapping pairs; then find the contacts (c_edge) of
     every awake blob (everyone: at the start of the step), or only of those whose vertices went farther
     than their budget from where theirs were found, or were split, and of their partners; the rest keep
@@ -629,17 +661,17 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, awake, orient, center, radiu
     for b in range(B):
         if awake[b]:
             reach[b] = budget[b] + moved[b]
-    _detect(pos, offsets, awake, stale, orient, center, radius, edges, partners[0], partners[1], partners[2], deep,
-            reach, c_edge)
+    _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, partners[0], partners[1], partners[2],
+            deep, reach, c_edge, stick_edge, stick_t)
 
 
 @stage_kernel
 def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                          blob_contact_depth, center, radius, up_x, up_y, strips, backward):
+                          blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t):
     """Push every kept contact's vertex out of the other blob where it is inside, with friction
     (Gauss-Seidel, by strips; backward: in reverse order)."""
     _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, blob_contact_depth, center,
-             radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward)
+             radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward, stick_edge, stick_t)
 
 
 VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
@@ -757,6 +789,16 @@ def _contact_impulse(p, e0, e1, vel, t, nx, ny, scale, static, kinetic):
         cut = _coulomb_cut(speed, static, kinetic)
     approach = min(un, 0.0)
     return -(approach * nx + cut * tx) * scale, -(approach * ny + cut * ty) * scale
+
+
+@kernel
+def release_sticks(c_hit, stick_edge):
+    """At the end of a substep: a contact that did not push in it lets go of its stick point (it
+    touches afresh, wherever it next pushes)."""
+    for c in range(c_hit.shape[0]):
+        for p in range(c_hit.shape[1]):
+            if c_hit[c, p] == 0:
+                stick_edge[c, p] = -1
 
 
 @kernel

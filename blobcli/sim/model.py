@@ -177,6 +177,9 @@ class State(NamedTuple):
     budget: np.ndarray  # (B,) m ... how far from there each blob's vertices may go before they are found again ...
     moved: np.ndarray  # (B,) m ... and how far they have gone
     blob_contact_depth: np.ndarray  # (N,) m, a vertex's total push-out by blobs this substep
+    stick_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64: where each contact's static friction holds the vertex,
+    #                        as a material point of the other blob: an edge (its first vertex; -1: none) ...
+    stick_t: np.ndarray  # (CONTACTS_PER_VERTEX, N) ... and the point's place along it, t in [0, 1]
 
     @property
     def pos(self) -> np.ndarray:
@@ -270,7 +273,9 @@ def build(scene: Scene) -> tuple[Model, State]:
                   c_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
                   c_hit=np.zeros((CONTACTS_PER_VERTEX, n), np.uint8),
                   anchor=np.zeros((2, n)), budget=np.zeros(blobs), moved=np.zeros(blobs),
-                  blob_contact_depth=np.zeros(n))
+                  blob_contact_depth=np.zeros(n),
+                  stick_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
+                  stick_t=np.zeros((CONTACTS_PER_VERTEX, n)))
     return model, state
 
 

@@ -29,6 +29,7 @@ from .collide import (
     find_blob_pairs,
     keep_blob_contacts,
     keep_impacts,
+    release_sticks,
     resolve_blob_contacts,
 )
 from .integrate import MIN_REST_SPEED, REST_SPEED_FACTOR, damp_deformation, predict, restitution, update_velocities
@@ -124,14 +125,15 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, AREA, t)
                 if pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
                     # contacts are found once per step, and again for blobs that went past their margin
-                    keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, s.awake, m.orient, s.center,
-                                       s.radius, s.edges, pairs, partners, not found, (c.substeps - sub) * h, g,
-                                       s.anchor, s.budget, s.moved, s.c_edge)
+                    keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
+                                       s.center, s.radius, s.edges, pairs, partners, not found,
+                                       (c.substeps - sub) * h, g, s.anchor, s.budget, s.moved, s.c_edge,
+                                       s.stick_edge, s.stick_t)
                     found = True
                     t = _lap(clock, BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
                                           m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
-                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1)
+                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t)
                     t = _lap(clock, BLOB_RESOLVE, t)
                 if c.statics:  # one kernel per collider kind
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.planes, m.segments,
@@ -153,6 +155,7 @@ def _advance(steps, state, model, settings, clock):
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
                                  s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
+                release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
                 t = _lap(clock, BLOB_RESTITUTION, t)
         if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake
             awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
