@@ -63,7 +63,7 @@ instead (the statics' rule), static friction held only within a substep: what th
 order left (the contacts of the edge's own vertices, solved after this one, move the edge point
 on) was never undone, so a vertex wedged in a pile crept 0.016 mm per step along its contact for
 a quarter of a second and snapped back 0.24 mm, and piles of 80 and 120 blobs kept vertices
-flickering at 24-34 mm/s long after they had settled (docs/physics.md, "Friction between blobs").
+flickering at 24-34 mm/s long after they had settled (docs/physics.md, "Blob–blob collisions").
 """
 
 import math
@@ -334,8 +334,9 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
     is inside of, or outside of by less than the pair's margin reach[A] + reach[B], how far each may
     go from here before it outgrows its budget.
 
-    Parallel over blobs; each blob writes only its own vertices' slots, so the result does not
-    depend on the number of threads."""
+    A contact with a blob that the vertex had a contact with before keeps that one's stick point (see
+    the module docstring); the others start without. Parallel over blobs; each blob writes only its own
+    vertices' slots, so the result does not depend on the number of threads."""
     longest = 0
     for b in range(offsets.shape[0] - 1):
         longest = max(longest, offsets[b + 1] - offsets[b])

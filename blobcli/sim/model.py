@@ -140,9 +140,10 @@ class State(NamedTuple):
     """What changes during a step, as the kernels read it: per-vertex vectors in structure-of-arrays
     layout, (2, N) with row 0 x and row 1 y, so that a loop over vertices reads contiguous memory
     (`pos` and `vel` are the (N, 2) views the rest of the program uses). position, velocity,
-    the impact records and the sleep state are the state proper (what /restart stores); the rest is scratch
-    rewritten every substep, kept here so that the per-vertex arrays are allocated once. The blob–blob pair lists
-    change length every substep and live inside the step (sim/pipeline.py)."""
+    the impact records, the sleep state and the blob contacts' stick points are the state proper (what
+    /restart stores); the rest is scratch rewritten every substep, kept here so that the per-vertex
+    arrays are allocated once. The blob–blob pair lists change length every substep and live inside
+    the step (sim/pipeline.py)."""
     position: np.ndarray  # (2, N) m
     velocity: np.ndarray  # (2, N) m/s
     impact: np.ndarray  # (B, 4) each blob's latest impact on statics: fastest approach V (m/s), the energy it
