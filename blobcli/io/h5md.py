@@ -291,7 +291,7 @@ class TrajectoryWriter:
             # The restart state goes with the frames at once: a file resumed and stopped before
             # its next recorded frame must still be resumable.
             self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), state.awake, state.still,
-                                (restart["stick_edge"][...], restart["stick_t"][...]), step)
+                                (state.stick_edge.T, state.stick_t.T), step)
             self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
         self.file.flush()
         return step

@@ -767,7 +767,7 @@ def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material
     len2 = ex * ex + ey * ey
     if len2 == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    t = min(max(((pos[0, p] - pos[0, e0]) * ex + (pos[1, p] - pos[1, e0]) * ey) / len2, 0.0), 1.0)
+    t = min(max(_along(pos, e0, e1, pos[0, p], pos[1, p]), 0.0), 1.0)
     length = math.sqrt(len2)
     we = inv_mass[e0] if awake[blob] else 0.0
     W = inv_mass[p] + ((1.0 - t) ** 2 + t * t) * we

@@ -20,16 +20,21 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def last_second(scene, seconds: float) -> dict:
-    """Run `scene` for `seconds`; over the last second: the fastest centre and vertex (m/s), the share
-    of blobs asleep at the end and the wall time of that second (s)."""
+def _run(scene, seconds: float):
+    """(model, state after `seconds`, params, steps per second) of `scene`."""
     from ..sim.model import build, build_params
     from ..sim.pipeline import advance
     model, state = build(scene)
     params = build_params(scene)
-    per_second = int(round(1.0 / params.dt))
-    steps = int(round(seconds / params.dt))
-    advance(state, model, params, steps - per_second)
+    advance(state, model, params, int(round(seconds / params.dt)))
+    return model, state, params, int(round(1.0 / params.dt))
+
+
+def last_second(scene, seconds: float) -> dict:
+    """Run `scene` for `seconds`; over the last second: the fastest centre and vertex (m/s), the share
+    of blobs asleep at the end and the wall time of that second (s)."""
+    from ..sim.pipeline import advance
+    model, state, params, per_second = _run(scene, seconds - 1.0)
     timed = type(state)(*(a.copy() for a in state))  # the last second again, in one compiled call, for the wall time
     t0 = time.perf_counter()
     advance(timed, model, params, per_second)
@@ -54,12 +59,7 @@ def fastest(state, model, params, steps: int) -> tuple[float, float]:
 def each_second(scene, first: int, last: int) -> list[tuple[int, float, float]]:
     """Run `scene` to `last` seconds; for each second from `first` on: (its start, fastest centre, fastest
     vertex) in m/s. One second alone can mislead in a pile still settling (a blob that slips)."""
-    from ..sim.model import build, build_params
-    from ..sim.pipeline import advance
-    model, state = build(scene)
-    params = build_params(scene)
-    per_second = int(round(1.0 / params.dt))
-    advance(state, model, params, first * per_second)
+    model, state, params, per_second = _run(scene, first)
     return [(second, *fastest(state, model, params, per_second)) for second in range(first, last)]
 
 
