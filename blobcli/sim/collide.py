@@ -498,9 +498,11 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     # on an edge (0 < t < 1) or at a corner between two edges (t = 0 or 1). It steps only onto edges
     # facing p's own outward normal v (the rule of _detect): a vertex deep inside must not walk round
     # to the far side and be pushed out through it.
-    vnx, vny = vertex_normal(pos, orient[a], p, offsets[a], offsets[a + 1])
     e1 = next_in_ring(e0, o, e)
     t = _along(pos, e0, e1, px, py)
+    vnx = vny = 0.0  # p's normal, found only if the walk steps (most contacts stay on their edge)
+    if t < 0.0 or t > 1.0:
+        vnx, vny = vertex_normal(pos, orient[a], p, offsets[a], offsets[a + 1])
     for _ in range(e - o):
         if t < 0.0:
             before = prev_in_ring(e0, o, e)
@@ -552,13 +554,15 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
     # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
     # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
-    f = ((center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y) / (radius[a] + radius[blob])
     if not awake[blob]:  # a sleeping blob does not move (sim/sleep.py)
         we = 0.0
-    elif f > 0.0 and we > wp:  # the vertex's blob is above and heavier
-        we *= (wp / we) ** min(2.0 * f, 2.0)
-    elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
-        wp *= (we / wp) ** min(-2.0 * f, 2.0)
+    elif we != wp:  # (equal masses: no scaling, so f is not needed)
+        dz = (center[a, 0] - center[blob, 0]) * up_x + (center[a, 1] - center[blob, 1]) * up_y
+        f = dz / (radius[a] + radius[blob])
+        if f > 0.0 and we > wp:  # the vertex's blob is above and heavier
+            we *= (wp / we) ** min(2.0 * f, 2.0)
+        elif f < 0.0 and wp > we:  # the edge's blob is above and heavier
+            wp *= (we / wp) ** min(-2.0 * f, 2.0)
     w0, w1 = (1.0 - t) * we, t * we
     W = wp + (1.0 - t) * w0 + t * w1
     contact_depth[p] += -C
