@@ -105,7 +105,7 @@ def test_format_1_files_are_still_read_but_not_resumed(tmp_path):
         assert cli(*args)[0] == 0, args
     scene = Path(__file__).parent.parent / "scenes" / "gish.toml"
     code, _, err = cli("run", scene, "--resume", old, "--steps", 300, "-q")
-    assert code == 2 and "resuming needs format 5" in err, err
+    assert code == 2 and "resuming needs format 6" in err, err
 
 
 def test_h5dump_reads_the_file(trajectory):

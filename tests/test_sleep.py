@@ -143,6 +143,39 @@ angular_velocity = 0.1
     assert state.awake.all()
 
 
+def test_a_blob_is_still_while_it_goes_nowhere_on_average():
+    """The rule of sim/sleep.py on its own (each blob its own island): a blob that rocks in place at 4×
+    sleep_speed (the bottom row of a large pile does) sleeps after time_to_sleep, one that creeps at 0.8×
+    sleep_speed sleeps too, and one that creeps at 1.2× never does. Tested on the speed at each step,
+    the rocking blob never slept."""
+    from blobcli.sim.sleep import update_sleep
+    n, r, dt, sleep_speed, time_to_sleep = 16, 0.2, 1.0 / 60.0, 0.005, 1.0
+    theta = 2 * np.pi * np.arange(n) / n
+    ring = r * np.stack([np.cos(theta), np.sin(theta)])
+    pos = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 1.0, 2.0)], axis=1)
+    offsets = np.array([0, n, 2 * n, 3 * n])
+    awake, still = np.ones(3, np.uint8), np.zeros(3)
+    still_center, still_angle = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), np.zeros(3)
+    spin = 4 * sleep_speed / r  # rad/s: the rim at 4 × sleep_speed
+    asleep_at = [None] * 3
+    for k in range(int(3 * time_to_sleep / dt)):
+        vel = np.zeros((2, 3 * n))
+        w = spin if k % 2 == 0 else -spin  # rocking: a step one way, a step back
+        vel[0, :n], vel[1, :n] = -w * ring[1], w * ring[0]
+        vel[0, n:2 * n] = 0.8 * sleep_speed
+        vel[0, 2 * n:] = 1.2 * sleep_speed
+        pos += vel * dt * awake.repeat(n)
+        update_sleep(pos, pos.copy(), vel, offsets, np.zeros((0, 2), np.int64), np.zeros(3 * n),
+                     np.full((2, 3 * n), -1, np.int64), awake, still, still_center, still_angle, sleep_speed,
+                     time_to_sleep, dt)
+        for b in range(3):
+            if asleep_at[b] is None and not awake[b]:
+                asleep_at[b] = (k + 1) * dt
+    assert asleep_at[0] == pytest.approx(time_to_sleep, abs=2 * dt)
+    assert asleep_at[1] == pytest.approx(time_to_sleep, abs=2 * dt)
+    assert asleep_at[2] is None
+
+
 def test_the_file_records_who_is_awake_and_resumes_the_sleep_state(tmp_path):
     path = tmp_path / "pile.toml"
     path.write_text(PILE.format(sleep="true", extra=""))

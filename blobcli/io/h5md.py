@@ -1,4 +1,4 @@
-"""Trajectory files: H5MD 1.1, blobsim format version 2 (a contract: docs/output-format.md).
+"""Trajectory files: H5MD 1.1, blobsim format FORMAT_VERSION (a contract: docs/output-format.md).
 
 The layout, `LAYOUT` below, is the one copy of the schema: docs/output-format.md shows it
 verbatim (a test keeps the two equal) and `trajectory_problems` checks every file read
@@ -25,13 +25,14 @@ import numpy as np
 from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 5
-READS_FORMATS = (1, 2, 3, 4, 5)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
+FORMAT_VERSION = 6
+READS_FORMATS = (1, 2, 3, 4, 5, 6)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
 #                               formats 1 and 2 store impact_speed in /restart; formats 1-3 have no sleeping
-#                               (no /observables/awake: every blob was awake); formats 1-4 are not resumable by
-#                               this blobsim (their /restart lacks the blob contacts' stick points)
+#                               (no /observables/awake: every blob was awake); formats 1-5 are not resumable by
+#                               this blobsim (their /restart lacks the stick points (1-4) or where each blob's
+#                               rest began (5))
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 5, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 6, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
@@ -69,7 +70,9 @@ LAYOUT = """\
     pair_key                 int64 [pairs]: blob pairs a < b with an impact record, as a × blobs + b, sorted
     pair_impact              float64 [pairs, 4]: their impact records, as impact's
     awake                    uint8 [blobs]: 1 awake, 0 asleep
-    still                    float64 [blobs]: how long each awake blob has been at rest (s)
+    still                    float64 [blobs]: how long each awake blob has been at rest (s) ...
+    still_center             float64 [blobs, 2]: ... where its centre was when that rest began (m) ...
+    still_angle              float64 [blobs]: ... and the angle of its first vertex about that centre then (rad)
     stick_edge               int64 [vertices, 2]: each vertex's blob contacts (up to 2) held by static friction:
                              the other blob's edge it sticks to (by the edge's first vertex; -1: none) ...
     stick_t                  float64 [vertices, 2]: ... and where along that edge (0 at its first vertex, 1 at
@@ -192,7 +195,7 @@ class TrajectoryWriter:
         self._last_vel = np.empty((n, 2))
         self._last_impact = np.empty((b, 4))
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
-        self._last_still = np.empty(b)
+        self._last_still = (np.empty(b), np.empty((b, 2)), np.empty(b))
         self._last_stick = (np.empty((n, 2), np.int64), np.empty((n, 2)))
         self._count = 0
         self._last_flush = time.monotonic()
@@ -208,7 +211,8 @@ class TrajectoryWriter:
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
         self._last_vel[...] = state.vel
-        self._last_still[...] = state.still
+        for kept, now in zip(self._last_still, (state.still, state.still_center, state.still_angle)):
+            kept[...] = now
         self._last_stick[0][...] = state.stick_edge.T
         self._last_stick[1][...] = state.stick_t.T
         self._last_impact[...] = state.impact
@@ -244,8 +248,9 @@ class TrajectoryWriter:
     def _write_restart(self, position, velocity, impact, pairs, awake, still, stick, step):
         restart = self.file.require_group(RESTART)
         for name, data in (("position", position), ("velocity", velocity), ("impact", impact),
-                           ("pair_key", pairs[0]), ("pair_impact", pairs[1]), ("awake", awake), ("still", still),
-                           ("stick_edge", stick[0]), ("stick_t", stick[1])):
+                           ("pair_key", pairs[0]), ("pair_impact", pairs[1]), ("awake", awake), ("still", still[0]),
+                           ("still_center", still[1]), ("still_angle", still[2]), ("stick_edge", stick[0]),
+                           ("stick_t", stick[1])):
             if name not in restart:  # the pair records change length: resizable along axis 0
                 restart.create_dataset(name, data=data, maxshape=(None, *data.shape[1:]), chunks=True)
             else:
@@ -286,11 +291,14 @@ class TrajectoryWriter:
             state.pair_count[0] = len(keys)
             state.awake[...] = restart["awake"][...]
             state.still[...] = restart["still"][...]
+            state.still_center[...] = restart["still_center"][...]
+            state.still_angle[...] = restart["still_angle"][...]
             state.stick_edge[...] = restart["stick_edge"][...].T
             state.stick_t[...] = restart["stick_t"][...].T
             # The restart state goes with the frames at once: a file resumed and stopped before
             # its next recorded frame must still be resumable.
-            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), state.awake, state.still,
+            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), state.awake,
+                                (state.still, state.still_center, state.still_angle),
                                 (state.stick_edge.T, state.stick_t.T), step)
             self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
         self.file.flush()
@@ -391,16 +399,18 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
             problems.append(f"{p} attribute {key} is missing")
     if "dt" in f[p].attrs and not (np.isfinite(f[p].attrs["dt"]) and f[p].attrs["dt"] > 0):
         problems.append(f"{p} attribute dt is not a positive number")
-    if need_restart and version < 5:
-        problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 5): "
+    if need_restart and version < 6:
+        problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 6): "
                         "run it again")
-    elif need_restart or RESTART in f and version >= 5:
+    elif need_restart or RESTART in f and version >= 6:
         pairs = f[f"{RESTART}/pair_key"].shape[0] if f"{RESTART}/pair_key" in f else 0
         problems += [_shape_problem(f, f"{RESTART}/position", (n, 2)), _shape_problem(f, f"{RESTART}/velocity", (n, 2)),
                      _shape_problem(f, f"{RESTART}/impact", (b, 4)),
                      _shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
                      _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4)),
                      _shape_problem(f, f"{RESTART}/awake", (b,), "u"), _shape_problem(f, f"{RESTART}/still", (b,)),
+                     _shape_problem(f, f"{RESTART}/still_center", (b, 2)),
+                     _shape_problem(f, f"{RESTART}/still_angle", (b,)),
                      _shape_problem(f, f"{RESTART}/stick_edge", (n, 2), "i"),
                      _shape_problem(f, f"{RESTART}/stick_t", (n, 2))]
         if RESTART in f and "step" not in f[RESTART].attrs:

@@ -111,8 +111,9 @@ class SceneSettings:
                          "best-fit rigid motion (moving, spinning and rolling are not damped)", "float", nonnegative)
     sleep: bool = key(True, "", "let islands of touching blobs at rest fall asleep: frozen exactly, not simulated, "
                       "woken by a moving blob coming near", "bool")
-    sleep_speed: float = key(0.005, "m/s", "a blob is at rest while its centre's speed and its spin × radius stay "
-                             "below this", "float", positive)
+    sleep_speed: float = key(0.005, "m/s", "a blob is at rest while it goes slower than this on average over "
+                             "time_to_sleep: its centre stays within sleep_speed × time_to_sleep of where its rest "
+                             "began, and its turn × radius too", "float", positive)
     time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps",
                                "float", positive)
 

@@ -154,7 +154,9 @@ class State(NamedTuple):
     pair_impact: np.ndarray  # (PAIRS_PER_BLOB B, 4) ... and their impact records, like `impact`
     pair_count: np.ndarray  # (1,) int64
     awake: np.ndarray  # (B,) uint8: 1 awake, 0 asleep (sim/sleep.py) ...
-    still: np.ndarray  # (B,) s ... and how long each awake blob has been still
+    still: np.ndarray  # (B,) s ... how long each awake blob has been still ...
+    still_center: np.ndarray  # (B, 2) m ... where its centre was when that time began ...
+    still_angle: np.ndarray  # (B,) rad ... and the angle of its first vertex about that centre then
     previous: np.ndarray  # (2, N) m, positions at the start of the substep
     predicted: np.ndarray  # (B, 4) each blob's centre-of-mass velocity (m/s), kinetic and potential energy (J/kg)
     #                        before this substep's constraints
@@ -262,10 +264,12 @@ def build(scene: Scene) -> tuple[Model, State]:
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
                   spring_compliance=1.0 / spring_stiffness)
     n, blobs = len(pos), len(counts)
+    centers = np.add.reduceat(pos, offsets[:-1]) / counts[:, None]
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
                   impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),
                   pair_impact=no_impact(PAIRS_PER_BLOB * blobs), pair_count=np.zeros(1, np.int64),
                   awake=np.ones(blobs, np.uint8), still=np.zeros(blobs),
+                  still_center=centers, still_angle=np.arctan2(*(pos[offsets[:-1]] - centers).T[::-1]),
                   previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
                   contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),

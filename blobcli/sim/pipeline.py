@@ -61,7 +61,7 @@ class StepSettings(NamedTuple):
     collides: bool  # blob–blob stages: more than one blob
     statics: bool  # static collider stage: any static collider
     sleep: bool  # islands at rest go to sleep (sim/sleep.py) ...
-    sleep_speed: float  # m/s ... once every blob's rigid speed stays below this ...
+    sleep_speed: float  # m/s ... once every blob has gone slower than this, on average ...
     time_to_sleep: float  # s ... for this long
 
 
@@ -159,7 +159,8 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, BLOB_RESTITUTION, t)
         if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake
             awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
-                                       s.c_edge, s.awake, s.still, c.sleep_speed, c.time_to_sleep, c.dt)
+                                       s.c_edge, s.awake, s.still, s.still_center, s.still_angle, c.sleep_speed,
+                                       c.time_to_sleep, c.dt)
             t = _lap(clock, SLEEP, t)
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:

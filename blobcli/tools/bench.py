@@ -425,7 +425,7 @@ def run_bench(quick: bool = False) -> dict:
                               for s, i in ((4, 2), (1, 1))]
     results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
-    results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 900, 5 if quick else 20)
+    results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 1500, 5 if quick else 20)
     results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
