@@ -415,6 +415,7 @@ def main(argv=None) -> int:
 
     from .io import interrupts
     interrupts.install()
+    interrupts.clear()  # none from an earlier command in this process
     try:
         args = parser().parse_args(argv)
         # Non-finite values are caught and reported by the run (runaway) and the readers.

@@ -10,6 +10,7 @@ no write or rename is ever cut in half.
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -30,15 +31,29 @@ _pending: int | None = None
 
 def _handler(signum, frame):
     global _pending
-    if _deferring:
-        _pending = signum
-    else:
+    _pending = signum  # recorded even when raised: see _quiet_interrupts
+    if not _deferring:
         raise Interrupted(signum)
 
 
+def _quiet_interrupts(unraisable) -> None:
+    """sys.unraisablehook: an Interrupted raised while a __del__ runs (llvmlite's, as numba compiles) is
+    swallowed by Python, which printed its traceback, and the command ran on to its end (a SIGINT 0.5 s
+    after the start of a long run, in CI: killed after 120 s). Silent here; it stays pending, so the run
+    stops at its first step boundary and exits 130. Anything else goes to the hook that was there."""
+    if not isinstance(unraisable.exc_value, Interrupted):
+        _previous_hook(unraisable)
+
+
+_previous_hook = sys.unraisablehook
+
+
 def install() -> None:
+    global _previous_hook
     for s in SIGNALS:
         signal.signal(s, _handler)
+    if sys.unraisablehook is not _quiet_interrupts:
+        _previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
 
 
 def pending() -> int | None:
@@ -47,6 +62,7 @@ def pending() -> int | None:
 
 
 def clear() -> None:
+    """Forget a pending signal: at the start of a command, and once a run has stopped for it."""
     global _pending
     _pending = None
 

@@ -80,8 +80,7 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
     problem = output_problem(path)
     if problem:
         raise OutputError(f"{path}: {problem}")
-    with interrupts.deferred(), OutputLock(path):
-        interrupts.clear()
+    with interrupts.deferred(), OutputLock(path):  # a signal since the command began stops it before its first step
         if replace_stale_partial:
             path.with_name(path.name + ".partial").unlink(missing_ok=True)
         return _run_locked(scene, path, progress, resume)

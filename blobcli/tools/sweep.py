@@ -212,7 +212,7 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
     """Write each point's scene, run the points that are not done (resuming interrupted ones)
     through the executor, and return ({point: summary row}, interrupted). A Ctrl-C stops the
     loop; points a worker finished but had not yet reported are read back from their files."""
-    from ..io.interrupts import Interrupted
+    from ..io.interrupts import Interrupted, pending
     from .executor import run_tasks
     out.mkdir(parents=True, exist_ok=True)
     rows, tasks, index = {}, [], []
@@ -236,7 +236,7 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
             if point_state(h5, sweep.texts[k]) == "done":
                 rows[k] = reused_row(h5)
         return rows, True
-    return rows, False
+    return rows, pending() is not None  # a signal whose raise Python swallowed (interrupts._quiet_interrupts)
 
 
 def run_point(point_toml: str, h5: str, resume: bool) -> dict:
