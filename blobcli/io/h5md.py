@@ -79,6 +79,16 @@ LAYOUT = """\
                              the next)
       attrs: step
 """
+# /restart's datasets of fixed shape, each a State field stored row by row: (dataset = State field,
+# rows: "vertices" or "blobs", columns (None: one value per row), HDF5 kinds). Per-vertex fields are
+# (k, N) in the State (structure of arrays) and stored [vertices, k]. The pair records (pair_key,
+# pair_impact) change length and are stored apart (restart_pairs).
+RESTART_FIELDS = (("position", "vertices", 2, "f"), ("velocity", "vertices", 2, "f"), ("impact", "blobs", 4, "f"),
+                  ("awake", "blobs", None, "u"), ("still", "blobs", None, "f"), ("still_center", "blobs", 2, "f"),
+                  ("still_angle", "blobs", None, "f"), ("stick_edge", "vertices", 2, "i"),
+                  ("stick_t", "vertices", 2, "f"))
+RESTART_DTYPES = {"f": np.float64, "i": np.int64, "u": np.uint8}
+_PER_VERTEX = {name for name, rows, *_ in RESTART_FIELDS if rows == "vertices"}
 POSITION = "particles/blobs/position"
 AREA = "observables/area"
 KINETIC = "observables/kinetic_energy"
@@ -192,11 +202,10 @@ class TrajectoryWriter:
         self._area = np.empty((self.block, b))
         self._kinetic = np.empty((self.block, b))
         self._awake = np.empty((self.block, b), np.uint8)
-        self._last_vel = np.empty((n, 2))
-        self._last_impact = np.empty((b, 4))
+        self._last = {name: np.empty(_restart_shape(rows, columns, n, b), RESTART_DTYPES[kinds])
+                      for name, rows, columns, kinds in RESTART_FIELDS
+                      if name not in ("position", "awake")}  # those two: from the frame buffers
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
-        self._last_still = (np.empty(b), np.empty((b, 2)), np.empty(b))
-        self._last_stick = (np.empty((n, 2), np.int64), np.empty((n, 2)))
         self._count = 0
         self._last_flush = time.monotonic()
         self._frame_bytes = 8 * (2 * n + 2 * b) + b + 16
@@ -210,12 +219,8 @@ class TrajectoryWriter:
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
-        self._last_vel[...] = state.vel
-        for kept, now in zip(self._last_still, (state.still, state.still_center, state.still_angle)):
-            kept[...] = now
-        self._last_stick[0][...] = state.stick_edge.T
-        self._last_stick[1][...] = state.stick_t.T
-        self._last_impact[...] = state.impact
+        for name, kept in self._last.items():
+            kept[...] = restart_view(state, name)
         self._last_pairs = restart_pairs(state)
         self._count = k + 1
         if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
@@ -238,19 +243,17 @@ class TrajectoryWriter:
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        self._write_restart(self._pos[k - 1], self._last_vel, self._last_impact, self._last_pairs, self._awake[k - 1],
-                            self._last_still, self._last_stick, steps[-1])
+        self._write_restart(dict(self._last, position=self._pos[k - 1], awake=self._awake[k - 1]), self._last_pairs,
+                            steps[-1])
         self.frames = stop
         self._count = 0
         self.file.flush()
         self._last_flush = time.monotonic()
 
-    def _write_restart(self, position, velocity, impact, pairs, awake, still, stick, step):
+    def _write_restart(self, fields, pairs, step):
+        """/restart: `fields` (dataset name -> array, as restart_view), the pair records, the step."""
         restart = self.file.require_group(RESTART)
-        for name, data in (("position", position), ("velocity", velocity), ("impact", impact),
-                           ("pair_key", pairs[0]), ("pair_impact", pairs[1]), ("awake", awake), ("still", still[0]),
-                           ("still_center", still[1]), ("still_angle", still[2]), ("stick_edge", stick[0]),
-                           ("stick_t", stick[1])):
+        for name, data in (*fields.items(), ("pair_key", pairs[0]), ("pair_impact", pairs[1])):
             if name not in restart:  # the pair records change length: resizable along axis 0
                 restart.create_dataset(name, data=data, maxshape=(None, *data.shape[1:]), chunks=True)
             else:
@@ -279,9 +282,8 @@ class TrajectoryWriter:
                         ds.resize(self.frames + stop - start, axis=0)
                         ds[self.frames:] = f[name][key][start:stop]
                 self.frames += stop - start
-            state.pos[...] = restart["position"][...]
-            state.vel[...] = restart["velocity"][...]
-            state.impact[...] = restart["impact"][...]
+            for name, *_ in RESTART_FIELDS:
+                restart_view(state, name)[...] = restart[name][...]
             keys = restart["pair_key"][...]
             if len(keys) > len(state.pair_key):
                 raise TrajectoryError(f"{source}: {RESTART}/pair_key holds {len(keys)} blob pairs, more than this "
@@ -289,17 +291,10 @@ class TrajectoryWriter:
             state.pair_key[:len(keys)] = keys
             state.pair_impact[:len(keys)] = restart["pair_impact"][...]
             state.pair_count[0] = len(keys)
-            state.awake[...] = restart["awake"][...]
-            state.still[...] = restart["still"][...]
-            state.still_center[...] = restart["still_center"][...]
-            state.still_angle[...] = restart["still_angle"][...]
-            state.stick_edge[...] = restart["stick_edge"][...].T
-            state.stick_t[...] = restart["stick_t"][...].T
             # The restart state goes with the frames at once: a file resumed and stopped before
             # its next recorded frame must still be resumable.
-            self._write_restart(state.pos, state.vel, state.impact, restart_pairs(state), state.awake,
-                                (state.still, state.still_center, state.still_angle),
-                                (state.stick_edge.T, state.stick_t.T), step)
+            self._write_restart({name: restart_view(state, name) for name, *_ in RESTART_FIELDS},
+                                restart_pairs(state), step)
             self.worst_area_error = _worst_area_error(f[AREA]["value"][1:keep], f[PARAMETERS]["target_area"][...])
         self.file.flush()
         return step
@@ -404,15 +399,10 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
                         "run it again")
     elif need_restart or RESTART in f and version >= 6:
         pairs = f[f"{RESTART}/pair_key"].shape[0] if f"{RESTART}/pair_key" in f else 0
-        problems += [_shape_problem(f, f"{RESTART}/position", (n, 2)), _shape_problem(f, f"{RESTART}/velocity", (n, 2)),
-                     _shape_problem(f, f"{RESTART}/impact", (b, 4)),
-                     _shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
-                     _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4)),
-                     _shape_problem(f, f"{RESTART}/awake", (b,), "u"), _shape_problem(f, f"{RESTART}/still", (b,)),
-                     _shape_problem(f, f"{RESTART}/still_center", (b, 2)),
-                     _shape_problem(f, f"{RESTART}/still_angle", (b,)),
-                     _shape_problem(f, f"{RESTART}/stick_edge", (n, 2), "i"),
-                     _shape_problem(f, f"{RESTART}/stick_t", (n, 2))]
+        problems += [_shape_problem(f, f"{RESTART}/{name}", _restart_shape(rows, columns, n, b), kinds)
+                     for name, rows, columns, kinds in RESTART_FIELDS]
+        problems += [_shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
+                     _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4))]
         if RESTART in f and "step" not in f[RESTART].attrs:
             problems.append(f"{RESTART} attribute step is missing")
     return [x for x in problems if x]
@@ -499,6 +489,18 @@ def open_trajectory(path, need_restart: bool = False) -> h5py.File:
         f.close()
         raise TrajectoryError(f"{path}: not a usable blobsim trajectory: {'; '.join(problems[:3])}")
     return f
+
+
+def restart_view(state, name):
+    """State field `name` of RESTART_FIELDS as /restart stores it, row by row (a view: writing it writes the
+    state)."""
+    field = getattr(state, name)
+    return field.T if name in _PER_VERTEX else field
+
+
+def _restart_shape(rows, columns, n, b) -> tuple:
+    """The shape of a RESTART_FIELDS dataset in a file of n vertices and b blobs."""
+    return (n if rows == "vertices" else b,) + (() if columns is None else (columns,))
 
 
 def restart_pairs(state):

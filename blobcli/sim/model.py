@@ -18,6 +18,7 @@ from ..geometry import ring_next, signed_area
 from ..scene.schema import BlobDef, Scene, StaticDef
 from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
+from .sleep import begin_still
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -264,12 +265,11 @@ def build(scene: Scene) -> tuple[Model, State]:
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
                   spring_compliance=1.0 / spring_stiffness)
     n, blobs = len(pos), len(counts)
-    centers = np.add.reduceat(pos, offsets[:-1]) / counts[:, None]
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
                   impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),
                   pair_impact=no_impact(PAIRS_PER_BLOB * blobs), pair_count=np.zeros(1, np.int64),
                   awake=np.ones(blobs, np.uint8), still=np.zeros(blobs),
-                  still_center=centers, still_angle=np.arctan2(*(pos[offsets[:-1]] - centers).T[::-1]),
+                  still_center=np.zeros((blobs, 2)), still_angle=np.zeros(blobs),
                   previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
                   contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
@@ -281,6 +281,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   blob_contact_depth=np.zeros(n),
                   stick_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
                   stick_t=np.zeros((CONTACTS_PER_VERTEX, n)))
+    begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)
     return model, state
 
 

@@ -83,6 +83,14 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, s
 
 
 @kernel
+def begin_still(pos, offsets, still, still_center, still_angle):
+    """Every blob's still time begins now, where it is (a state just built)."""
+    for b in range(offsets.shape[0] - 1):
+        cx, cy, angle = _pose(pos, offsets[b], offsets[b + 1])
+        _begin_still(b, cx, cy, angle, still, still_center, still_angle)
+
+
+@kernel
 def _pose(pos, o, e):
     """Ring o..e's centre (the mean of its vertices) and the angle of its first vertex about it (rad)."""
     cx, cy, _, _ = ring_means(pos, pos, o, e)
