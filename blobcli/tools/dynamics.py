@@ -126,6 +126,52 @@ def dropped_straight(seconds: float = 30.0) -> float:
     return worst
 
 
+def crushed_light_blob(seconds: float = 5.0) -> tuple[float, float, bool]:
+    """scenes/crusher.toml at the defaults: the light blob's worst area error |A / A_0 - 1| over the
+    run, at its end, and whether its polygon ever self-intersected (checked after every step)."""
+    from pathlib import Path
+
+    from ..geometry import first_crossing, signed_area
+    model, state, params = _run((Path(__file__).resolve().parents[2] / "scenes" / "crusher.toml").read_text())
+    light = slice(model.offsets[0], model.offsets[1])
+    worst = error = 0.0
+    crossed = False
+    for _ in range(round(seconds / params.dt)):
+        advance(state, model, params, 1)
+        crossed |= first_crossing(state.pos[light]) is not None
+        error = abs(signed_area(state.pos[light]) / model.target_area[0] - 1.0)
+        worst = max(worst, error)
+    return worst, error, crossed
+
+
+def settled_pile(seconds: tuple[float, float] = (6.0, 10.0), settings: str = "") -> dict:
+    """scenes/pile.toml (120 blobs), sleeping off (and `settings`, more [scene] lines): the deepest
+    vertex inside another blob (m) at the first of `seconds`, its median and worst over the window,
+    and each blob's area error |A / A_0 - 1| at the first (mean, worst)."""
+    from pathlib import Path
+
+    from ..geometry import depth_inside_polygon, signed_area
+    from ..sim.collide import find_blob_pairs
+    text = (Path(__file__).resolve().parents[2] / "scenes" / "pile.toml").read_text()
+    model, state, params = _run(text.replace("[scene]\n", f"[scene]\nsleep = false\n{settings}", 1))
+    ring = [slice(model.offsets[b], model.offsets[b + 1]) for b in range(model.blob_count)]
+
+    def deepest():
+        pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius,
+                                    state.edges, state.blob_contact_depth, state.c_hit)
+        return max((float(depth_inside_polygon(state.pos[ring[x]], state.pos[ring[y]]).max())
+                    for a, b in pairs for x, y in ((a, b), (b, a))), default=0.0)
+    first, last = (round(t / params.dt) for t in seconds)
+    advance(state, model, params, first)
+    error = [abs(signed_area(state.pos[r]) / model.target_area[b] - 1.0) for b, r in enumerate(ring)]
+    depths = [deepest()]
+    for _ in range(last - first):
+        advance(state, model, params, 1)
+        depths.append(deepest())
+    return {"deepest_m": depths[0], "median_deepest_m": float(np.median(depths)), "worst_deepest_m": max(depths),
+            "mean_area_error": float(np.mean(error)), "worst_area_error": float(np.max(error))}
+
+
 def main() -> None:
     print("case | physics says | blobsim")
     for n in (32, 64, 128):
@@ -143,6 +189,17 @@ def main() -> None:
     print(f"default blobs head-on (r = 0.4 m) | stay on the axis | {axis * 1e3:.3f} mm off it, "
           f"vertices mirrored within {mirror * 1e3:.2f} mm")
     print(f"default r = 1 m blob dropped straight, 30 s | stays centred | {dropped_straight() * 1e3:.2g} mm off")
+    worst, end, crossed = crushed_light_blob()
+    print(f"crusher.toml: 0.1 kg blob under 3 × 15 kg | keeps its area, never tangles | within {worst:.2%} "
+          f"(at 5 s {end:.2%}), {'self-intersected' if crossed else 'never self-intersected'}")
+    pile = settled_pile()
+    print(f"pile.toml settled, sleep off, 6 s | no vertex deep in another blob | "
+          f"deepest {pile['deepest_m'] * 1e3:.3f} mm "
+          f"(6-10 s: median {pile['median_deepest_m'] * 1e3:.3f}, worst {pile['worst_deepest_m'] * 1e3:.3f}); area "
+          f"error mean {pile['mean_area_error']:.2%}, worst {pile['worst_area_error']:.2%}")
+    pile = settled_pile(settings="substeps = 8\n")
+    print(f"the same at 8 substeps | | deepest {pile['deepest_m'] * 1e3:.3f} mm, area error mean "
+          f"{pile['mean_area_error']:.2%}")
 
 
 if __name__ == "__main__":
