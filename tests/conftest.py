@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from blobcli import build, build_params, parse_scene, step
-from blobcli.geometry import depth_inside_polygon, first_crossing, signed_area
-from blobcli.sim.collide import find_blob_pairs
+from blobcli.geometry import first_crossing, signed_area
+from blobcli.tools.dynamics import deepest_overlap  # noqa: F401 (for the tests: the figure the docs quote)
 
 # Tolerances, with what they bound.
 AREA_ROUNDOFF = 1e-12  # relative area error of a free blob after a projection / a step
@@ -145,16 +145,3 @@ def blobsim(*args, env=None, cwd=None):
         return SimpleNamespace(returncode=code, stdout=out, stderr=err)
     return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
                           timeout=300, env=env, cwd=cwd)
-
-
-def deepest_overlap(state, model):
-    """The deepest vertex inside another blob (m), over the pairs the broad phase finds."""
-    pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
-                                state.blob_contact_depth, state.c_hit)
-    worst = 0.0
-    for a, b in pairs:
-        for x, y in ((a, b), (b, a)):
-            ring = state.pos[model.offsets[x]:model.offsets[x + 1]]
-            other = state.pos[model.offsets[y]:model.offsets[y + 1]]
-            worst = max(worst, depth_inside_polygon(ring, other).max())
-    return worst

@@ -10,6 +10,7 @@ this prints the numbers that docs/physics.md quotes.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ..sim.model import build, build_params
 from ..sim.pipeline import advance
 
 G = 9.81
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
 FLOOR = '\n[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
 HARD = "pressure = 1.1\ncompliance = 1e-6\n"  # a hard blob: over-pressured, nearly inextensible skin
 
@@ -129,10 +131,8 @@ def dropped_straight(seconds: float = 30.0) -> float:
 def crushed_light_blob(seconds: float = 5.0) -> tuple[float, float, bool]:
     """scenes/crusher.toml at the defaults: the light blob's worst area error |A / A_0 - 1| over the
     run, at its end, and whether its polygon ever self-intersected (checked after every step)."""
-    from pathlib import Path
-
     from ..geometry import first_crossing, signed_area
-    model, state, params = _run((Path(__file__).resolve().parents[2] / "scenes" / "crusher.toml").read_text())
+    model, state, params = _run((SCENES / "crusher.toml").read_text())
     light = slice(model.offsets[0], model.offsets[1])
     worst = error = 0.0
     crossed = False
@@ -144,30 +144,32 @@ def crushed_light_blob(seconds: float = 5.0) -> tuple[float, float, bool]:
     return worst, error, crossed
 
 
+def deepest_overlap(state, model) -> float:
+    """The deepest vertex inside another blob (m), over the pairs the broad phase finds."""
+    from ..geometry import depth_inside_polygon
+    from ..sim.collide import find_blob_pairs
+    pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
+                                state.blob_contact_depth, state.c_hit)
+    ring = [state.pos[model.offsets[b]:model.offsets[b + 1]] for b in range(model.blob_count)]
+    return max((float(depth_inside_polygon(ring[x], ring[y]).max()) for a, b in pairs for x, y in ((a, b), (b, a))),
+               default=0.0)
+
+
 def settled_pile(seconds: tuple[float, float] = (6.0, 10.0), settings: str = "") -> dict:
     """scenes/pile.toml (120 blobs), sleeping off (and `settings`, more [scene] lines): the deepest
     vertex inside another blob (m) at the first of `seconds`, its median and worst over the window,
     and each blob's area error |A / A_0 - 1| at the first (mean, worst)."""
-    from pathlib import Path
-
-    from ..geometry import depth_inside_polygon, signed_area
-    from ..sim.collide import find_blob_pairs
-    text = (Path(__file__).resolve().parents[2] / "scenes" / "pile.toml").read_text()
+    from ..geometry import signed_area
+    text = (SCENES / "pile.toml").read_text()
     model, state, params = _run(text.replace("[scene]\n", f"[scene]\nsleep = false\n{settings}", 1))
-    ring = [slice(model.offsets[b], model.offsets[b + 1]) for b in range(model.blob_count)]
-
-    def deepest():
-        pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius,
-                                    state.edges, state.blob_contact_depth, state.c_hit)
-        return max((float(depth_inside_polygon(state.pos[ring[x]], state.pos[ring[y]]).max())
-                    for a, b in pairs for x, y in ((a, b), (b, a))), default=0.0)
     first, last = (round(t / params.dt) for t in seconds)
     advance(state, model, params, first)
-    error = [abs(signed_area(state.pos[r]) / model.target_area[b] - 1.0) for b, r in enumerate(ring)]
-    depths = [deepest()]
+    error = [abs(signed_area(state.pos[model.offsets[b]:model.offsets[b + 1]]) / model.target_area[b] - 1.0)
+             for b in range(model.blob_count)]
+    depths = [deepest_overlap(state, model)]
     for _ in range(last - first):
         advance(state, model, params, 1)
-        depths.append(deepest())
+        depths.append(deepest_overlap(state, model))
     return {"deepest_m": depths[0], "median_deepest_m": float(np.median(depths)), "worst_deepest_m": max(depths),
             "mean_area_error": float(np.mean(error)), "worst_area_error": float(np.max(error))}
 
