@@ -26,11 +26,10 @@ from ..geometry import ring_next
 from .outputs import create_partial, publish
 
 FORMAT_VERSION = 6
-READS_FORMATS = (1, 2, 3, 4, 5, 6)  # format 1 lacks /connectivity, particles/blobs/mass and the units module;
-#                               formats 1 and 2 store impact_speed in /restart; formats 1-3 have no sleeping
-#                               (no /observables/awake: every blob was awake); formats 1-5 are not resumable by
-#                               this blobsim (their /restart lacks the stick points (1-4) or where each blob's
-#                               rest began (5))
+# Format 1 lacks /connectivity, particles/blobs/mass and the units module; formats 1 and 2 store impact_speed
+# in /restart; formats 1-3 have no sleeping (no /observables/awake: every blob was awake); formats 1-5 are not
+# resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5)).
+READS_FORMATS = (1, 2, 3, 4, 5, 6)
 LAYOUT = """\
 /                            attrs: complete (bool), blobsim_format = 6, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
