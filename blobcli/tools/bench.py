@@ -330,6 +330,16 @@ def measure_peer(blobs: int, layout: str, repeats: int, settle_steps: int, setti
     return {"blobs": blobs, "layout": layout, "ms_per_step": sec * 1e3}
 
 
+def measure_floor(blobs: int, settings_: str) -> dict:
+    """The same blobs apart on the floor at these settings: no blob contacts, so the least any piled step
+    of theirs can cost; with the stage clock's ms per step of its costliest stage."""
+    apart = measure_blobsim(blobs, "apart", 3, 1, settings_)
+    per_step, _, _ = _profile(scene_text(blobs, "apart", settings_), "bench-floor", 1, 20)
+    stage = max(per_step, key=per_step.get)
+    return {"apart_ms_per_step": apart["ms_per_step"], "apart_top_stage": stage,
+            "apart_top_stage_ms": 1e3 * per_step[stage], "apart_clocked_ms": 1e3 * sum(per_step.values())}
+
+
 def _run_seconds(args, env) -> float:
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "blobcli", *args], check=True, env=env, capture_output=True)
@@ -417,8 +427,8 @@ def run_bench(quick: bool = False) -> dict:
                 results["peer"].append(peer)
     if not quick:  # both at pymunk's own settings
         ours, peer = (measure(100, "piled", 3, 4 * 120, PEER_SETTINGS) for measure in (measure_blobsim, measure_peer))
-        results["peer_240"] = {"ms_per_step": ours["ms_per_step"], "peer_ms_per_step": peer["ms_per_step"]} \
-            if peer else None
+        results["peer_240"] = {"ms_per_step": ours["ms_per_step"], "peer_ms_per_step": peer["ms_per_step"],
+                               **measure_floor(100, PEER_SETTINGS)} if peer else None
     results["core"] = measure_core(counts[-1], 10 if quick else 40)
     results["one_blob"] = measure_one_blob_step(repeats)
     results["c_reference"] = [measure_c_reference(counts[-1], s, i, 3 if quick else 10, 3 if quick else 5)
@@ -483,6 +493,10 @@ def format_bench(r: dict) -> str:
         lines.append(f"100 blobs piled at dt = 1/240 s, 1 substep, 10 iterations: {p['ms_per_step']:.3f} ms/step vs "
                      f"pymunk {p['peer_ms_per_step']:.3f}, {p['peer_ms_per_step'] / p['ms_per_step']:.1f}x "
                      f"(target >= {t['peer_speedup_240_1x10']:g}x)")
+        lines.append(f"  the same blobs apart on the floor (no blob contacts): {p['apart_ms_per_step']:.3f} ms/step, "
+                     f"pymunk's pile {p['peer_ms_per_step'] / p['apart_ms_per_step']:.1f}x that: the most the pile "
+                     f"could reach were its contacts free; {p['apart_top_stage']} {p['apart_top_stage_ms']:.3f} of "
+                     f"{p['apart_clocked_ms']:.3f} ms (stage clock)")
     for layout in ("apart", "piled"):
         if (layout, 1000) in rows and (layout, 100) in rows:
             ratio = rows[(layout, 1000)]["ms_per_step"] / rows[(layout, 100)]["ms_per_step"]
