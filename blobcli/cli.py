@@ -21,8 +21,25 @@ def _positive_int(text):
     return v
 
 
-def _nonnegative_int(text):
-    return 0 if text.strip() == "0" else _positive_int(text)
+def _workers(text):
+    """--workers: 0 (in this process) up to MAX_WORKERS_PER_CORE per core."""
+    from .tools.executor import MAX_WORKERS_PER_CORE, default_workers
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer (got {text!r})") from None
+    most = MAX_WORKERS_PER_CORE * default_workers()
+    if not 0 <= v <= most:
+        raise argparse.ArgumentTypeError(f"must be from 0 to {most} ({MAX_WORKERS_PER_CORE} per core) (got {v})")
+    return v
+
+
+def _scheduler(text):
+    """--scheduler: a Dask scheduler address, [protocol://]host:port."""
+    import re
+    if not re.fullmatch(r"((tcp|tls|ws|wss|ucx)://)?[A-Za-z0-9._\-\[\]:]+:\d{1,5}", text):
+        raise argparse.ArgumentTypeError(f"must be a Dask scheduler address such as tcp://host:8786 (got {text!r})")
+    return text
 
 
 def _number(allow_zero: bool):
@@ -60,9 +77,9 @@ _nonnegative_float = _number(allow_zero=True)
 
 
 def _cluster_options(command):
-    command.add_argument("--scheduler", metavar="ADDRESS",
+    command.add_argument("--scheduler", type=_scheduler, metavar="ADDRESS",
                          help="a running Dask scheduler (tcp://host:8786) instead of a local cluster")
-    command.add_argument("--workers", type=_nonnegative_int, metavar="N",
+    command.add_argument("--workers", type=_workers, metavar="N",
                          help="local worker processes (default: one per core; 0: in this process)")
 
 
@@ -85,7 +102,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", metavar="PARTIAL.h5",
                      help="continue an interrupted run of this scene from its last frame "
                           "(output defaults to that file)")
-    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--threads", type=_positive_int, metavar="N",
+                     help="threads for the step, fixed (default: auto, all cores, one while more are slower)")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no compile line")
 
     check = sub.add_parser("check", help="validate scenes and print them with every default filled in")
     check.add_argument("scenes", nargs="+", metavar="SCENE")
@@ -184,6 +203,11 @@ def cmd_run(args) -> int:
     except SceneError as e:
         return _fail(e.problems)
     problems = _output_problems((args.output, "file"))
+    if args.threads is not None:
+        from .io.threads import available
+        if args.threads > available():
+            problems.append(f"--threads: at most {available()}, the threads numba has (NUMBA_NUM_THREADS, default: "
+                            f"the cores) (got {args.threads})")
     if problems:
         return _fail(problems)
     output = args.output
@@ -206,7 +230,10 @@ def cmd_run(args) -> int:
     from .io import interrupts
     from .io.run import simulate
     with interrupts.deferred():  # a signal now would only cut the summary: the file is whole either way
-        result = simulate(scene, output, progress=not args.quiet and sys.stderr.isatty(), resume=args.resume)
+        from .io.notice import announcer
+        live = not args.quiet and sys.stderr.isatty()
+        result = simulate(scene, output, progress=live, resume=args.resume,
+                          announce=None if args.quiet else announcer(live), threads=args.threads)
         interrupts.clear()
         if result.message:
             print(f"blobsim: {result.message}", file=sys.stderr)
@@ -338,15 +365,21 @@ def cmd_study(args) -> int:
 
 
 def cmd_export(args) -> int:
+    import os
     from pathlib import Path
 
     from .io.export import sidecars
     source = Path(args.trajectory)
-    out = Path(args.output) if args.output else source.with_name(f"{source.stem}_export.{args.format}")
+    out = Path(args.output) if args.output is not None else source.with_name(f"{source.stem}_export.{args.format}")
+    if args.output == "":
+        return _fail(["-o: is empty"])
     problems = _output_problems(*((p, "file") for p in sidecars(out, args.format)))
-    if any(p.resolve() == source.resolve() for p in sidecars(out, args.format)):
-        problems.append(f"{out}: would overwrite {source} (XDMF writes its data to {out.with_suffix('.h5')}); "
-                        f"choose another -o")
+    for p in [] if problems else sidecars(out, args.format):
+        if p.exists() and source.exists() and os.path.samefile(p, source):  # by identity: hard links too
+            problems.append(f"{p}: is {source}, the trajectory exported; choose another -o")
+        elif p != out and p.exists() and not _export_wrote(p, out):
+            problems.append(f"{p}: exists and is not the heavy data of an earlier export to {out} "
+                            f"(XDMF writes its data there); move it away or choose another -o")
     if problems:
         return _fail(problems)
     from .io.export import export
@@ -356,9 +389,27 @@ def cmd_export(args) -> int:
     return 0
 
 
+def _export_wrote(sidecar, out) -> bool:
+    """Whether `sidecar` is the heavy data of an earlier `export --format xdmf` to `out`: a regular file
+    (not a link) beside an XDMF file `out` that names it, and no H5MD trajectory."""
+    import os
+    import stat
+    try:
+        if not (stat.S_ISREG(os.lstat(sidecar).st_mode) and stat.S_ISREG(os.lstat(out).st_mode)):
+            return False
+        import h5py
+        with h5py.File(sidecar, "r") as f:
+            if "h5md" in f:
+                return False
+        return f"{sidecar.name}:" in out.read_text(errors="replace")
+    except (OSError, ValueError):
+        return False
+
+
 def cmd_sweep(args) -> int:
     from pathlib import Path
 
+    from .io.notice import announcer
     from .scene.schema import SceneError
     from .tools import sweep as sw
     try:
@@ -366,12 +417,13 @@ def cmd_sweep(args) -> int:
     except SceneError as e:
         return _fail(e.problems)
     out = Path(args.output) / sweep.name
-    problems = _output_problems((out, "dir"))
+    problems = _output_problems((args.output, "dir"), (out, "dir"))
     if problems:
         return _fail(problems)
-    rows, interrupted = sw.run_sweep(sweep, out, args.scheduler, args.workers,
-                                     progress=not args.quiet and sys.stderr.isatty(),
-                                     announce=lambda line: print(line, file=sys.stderr))
+    live = not args.quiet and sys.stderr.isatty()
+    rows, interrupted = sw.run_sweep(sweep, out, args.scheduler, args.workers, progress=live,
+                                     announce=lambda line: print(line, file=sys.stderr),
+                                     compiling=None if args.quiet else announcer(live))
     summary = sw.write_summary(sweep, rows, out)
     sw.chart(sweep, rows, out / "summary.png", args.metrics)
     ok = sum(r["status"] == "ok" for r in rows.values())
@@ -427,9 +479,13 @@ def main(argv=None) -> int:
     except BrokenPipeError:
         return 1
     except Exception as e:  # noqa: BLE001 - the documented one-line contract of the command line
+        if interrupts.caused_by_signal(e):  # raised inside code that wraps exceptions (a class's __set_name__)
+            print("blobsim: interrupted", file=sys.stderr)
+            return 130
         from .io.h5md import TrajectoryError
         from .io.outputs import OutputError
-        if isinstance(e, (TrajectoryError, OutputError)):
+        from .tools.executor import SchedulerError
+        if isinstance(e, (TrajectoryError, OutputError, SchedulerError)):
             return _fail([str(e)])
         if os.environ.get("BLOBSIM_DEBUG"):
             raise

@@ -1,4 +1,4 @@
-"""The numba decorators every kernel uses.
+"""The numba decorators every kernel uses, and the builds of the step for one scene's configuration.
 
 cache=True keeps compiled kernels on disk between runs; error_model="numpy" lets
 divisions skip the zero check so loops vectorize; fastmath stays off because it
@@ -16,19 +16,22 @@ kernel = numba.njit(**FLAGS)
 inline_kernel = numba.njit(inline="always", **FLAGS)
 
 _STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, its Python function)
-_TWINS: dict[int, object] = {}  # id(serial build) -> parallel build
+_BUILDS: dict[tuple, object] = {}  # (id(serial build), parallel, bound configuration) -> that build
 
 
 def stage_kernel(fn):
-    """A stage kernel: returns its serial build (numba.prange runs as range); `parallel(k)` gives
-    the same code built with parallel=True, which stages use from 32 blobs (model.parallel).
-    Both give the same bits: a prange loop's iterations write only their own slots.
+    """A stage kernel: returns its serial build (numba.prange runs as range), for calls that need no
+    configuration; `build` gives the build for one scene's configuration, serial or parallel.
 
-    A stage kernel may call other stage kernels (the step's driver calls them all): in the
-    parallel build, each one it names is its parallel build too. So the step is compiled twice,
-    serial and parallel, from one text.
+    A stage kernel may call other stage kernels (the step's driver calls them all), and may read
+    configuration names: module globals in capitals (COLLIDES, METHOD, ...) that say what the scene
+    uses. `build` compiles a renamed copy of the code in which those names are the scene's values
+    and each stage kernel it calls is that stage's build for the same configuration. numba reads a
+    global as a compile-time constant and prunes a branch on constants before typing it
+    (`if COLLIDES:` with COLLIDES false), so a build compiles only the stages its scene runs.
 
-    Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step
+    Serial and parallel builds give the same bits: a prange loop's iterations write only their own
+    slots. Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step
     3× slower, while at 1,000 blobs the parallel builds are far faster, on one thread too (the
     perimeter sweep: 16.7 ns per edge serial, 7.1 parallel on one thread, 3.7 on two).
     """
@@ -37,27 +40,71 @@ def stage_kernel(fn):
     return serial
 
 
-def parallel(serial):
-    """The parallel build of a stage kernel, compiled from a renamed copy of its code (numba's disk
-    cache keys a kernel by its name and bytecode, not its flags, so two builds of one function
-    would overwrite each other's cache: numba issue #6845) whose globals name the parallel builds
-    of the stage kernels it calls. Built on first use, when every module it names is loaded."""
-    twin = _TWINS.get(id(serial))
+def _callees(fn):
+    """The stage kernels that fn's code names."""
+    return [fn.__globals__[name] for name in fn.__code__.co_names
+            if id(fn.__globals__.get(name)) in _STAGES]
+
+
+def _reads(fn, names) -> set:
+    """Which of `names` fn reads, itself or through the stage kernels it calls."""
+    found = set(fn.__code__.co_names) & set(names)
+    for callee in _callees(fn):
+        found |= _reads(_STAGES[id(callee)][1], names)
+    return found
+
+
+def _has_prange(fn) -> bool:
+    """Whether fn, or a stage kernel it calls, has prange loops."""
+    return "prange" in fn.__code__.co_names or any(_has_prange(_STAGES[id(c)][1]) for c in _callees(fn))
+
+
+def build(serial, is_parallel: bool = False, config: dict | None = None):
+    """The build of a stage kernel for one configuration (a dict of configuration names to bool or
+    int values), serial or parallel: the serial build itself when the kernel reads none of those
+    names and has no prange loop to run in parallel, else a renamed copy of its code compiled with
+    them bound. The name says the bound values (numba's disk cache keys a kernel by its name and
+    bytecode, not its globals or flags, so two builds of one function under one name would
+    overwrite each other's cache: numba issue #6845). Built on first use, when every module it
+    names is loaded; compiled on its first call (or loaded from the disk cache)."""
+    config = config or {}
+    _, fn = _STAGES[id(serial)]
+    bound = tuple(sorted((name, config[name]) for name in _reads(fn, config)))
+    parallel = is_parallel and _has_prange(fn)
+    if not bound and not parallel:
+        return serial
+    key = (id(serial), parallel, bound)
+    twin = _BUILDS.get(key)
     if twin is None:
-        _, fn = _STAGES[id(serial)]
         scope = dict(fn.__globals__)
-        code = fn.__code__.replace(co_name=fn.__name__ + "_parallel", co_qualname=fn.__qualname__ + "_parallel")
+        scope.update(bound)
+        suffix = "".join(f"_{name.lower()}{int(value)}" for name, value in bound) + ("_parallel" if parallel else "")
+        code = fn.__code__.replace(co_name=fn.__name__ + suffix, co_qualname=fn.__qualname__ + suffix)
         function = types.FunctionType(code, scope, code.co_name, fn.__defaults__, fn.__closure__)
         # parallel=True where the code has prange loops of its own; a stage that only calls others
         # (the driver, say) is parallel through them
-        own_loops = "prange" in fn.__code__.co_names
-        twin = _TWINS[id(serial)] = numba.njit(parallel=own_loops, **FLAGS)(function)
-        for name, value in scope.items():  # after registering the twin: a module's kernels name each other
-            if id(value) in _STAGES:
-                scope[name] = parallel(value)
+        own_loops = parallel and "prange" in fn.__code__.co_names
+        twin = _BUILDS[key] = numba.njit(parallel=own_loops, **FLAGS)(function)
+        for name in fn.__code__.co_names:  # after registering the twin: a module's kernels name each other
+            if id(scope.get(name)) in _STAGES:
+                scope[name] = build(scope[name], is_parallel, config)
     return twin
 
 
-def build(serial, is_parallel: bool):
-    """The serial or the parallel build of a stage kernel."""
-    return parallel(serial) if is_parallel else serial
+def parallel(serial):
+    """The parallel build of a stage kernel that reads no configuration."""
+    return build(serial, True)
+
+
+def in_disk_cache(dispatcher, args) -> bool | None:
+    """Whether numba's disk cache holds `dispatcher` compiled for these arguments (so a first call
+    only loads it): True or False, or None when numba's cache cannot be asked (its internals moved)."""
+    if dispatcher.overloads:
+        return True
+    try:
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        cache = dispatcher._cache
+        key = cache._index_key(sig, dispatcher.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # a private API: any change in numba means "cannot tell", never a failed run
+        return None

@@ -55,7 +55,7 @@ COMPARE_REPORT = 1e-12  # m: a deviation `compare` reports vs the one planted in
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: long runs (seconds each); CI runs them, `pytest -m 'not slow'` skips them")
+    config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
 
 
 def scene(text: str):

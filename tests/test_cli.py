@@ -133,7 +133,7 @@ steps = 1000000
 [[blob]]
 center = [0.0, 1.0]
 radius = 0.3
-grid = [10, 10]
+grid = [5, 5]
 spacing = [0.8, 0.8]
 [[static]]
 kind = "plane"
@@ -213,7 +213,11 @@ def test_two_runs_are_bit_identical(tmp_path):
     assert a.position.tobytes() == b.position.tobytes()
 
 
-@pytest.mark.parametrize("scene", SCENES, ids=[s.stem for s in SCENES])
+PARALLEL_SCENES = ("hourglass", "pile")  # 32 blobs or more: the parallel build, compiled in the slow tier
+
+
+@pytest.mark.parametrize("scene", [pytest.param(s, marks=pytest.mark.slow) if s.stem in PARALLEL_SCENES else s
+                                   for s in SCENES], ids=[s.stem for s in SCENES])
 def test_every_shipped_scene_runs(tmp_path, scene):
     """Smoke: every scene validates, builds and steps (its physics is tested elsewhere)."""
     from blobcli import load_scene, simulate

@@ -197,12 +197,14 @@ def test_collision_stages_do_not_run_with_one_blob():
     assert clock["broad phase"] == clock["blob detect"] == clock["blob resolve"] == 0.0  # ... and these did not
 
 
+@pytest.mark.slow
 def test_pile_runs_are_bit_identical():
     a = settle("pile", 60)[1].pos
     b = settle("pile", 60)[1].pos
     assert a.tobytes() == b.tobytes()
 
 
+@pytest.mark.slow
 def test_serial_and_parallel_stage_builds_give_the_same_bits(monkeypatch):
     parallel = settle("pile", 60)  # 120 blobs: the parallel builds
     assert parallel[0].parallel

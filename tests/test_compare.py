@@ -116,7 +116,8 @@ def test_different_lengths_are_a_difference_unless_a_horizon_is_given(tmp_path):
     assert compare_files(long, short, frames=21).same
 
 
-@pytest.mark.parametrize("name, steps, every", GOLDEN, ids=[g[0] for g in GOLDEN])
+@pytest.mark.parametrize("name, steps, every", [pytest.param(*g, marks=pytest.mark.slow) if g[0] == "pile" else g
+                                                for g in GOLDEN], ids=[g[0] for g in GOLDEN])  # pile: parallel
 def test_fresh_runs_match_the_golden_trajectories(tmp_path, name, steps, every):
     from dataclasses import replace
     sc = with_overrides(load_scene(ROOT / "scenes" / f"{name}.toml"), steps=steps)
@@ -125,6 +126,7 @@ def test_fresh_runs_match_the_golden_trajectories(tmp_path, name, steps, every):
     assert report.same, report.text() + "\n(if the physics changed on purpose: python tests/golden/regenerate.py)"
 
 
+@pytest.mark.slow
 def test_golden_hash_of_a_chaotic_pile():
     """Box2D-style: the final positions of a tumbling pile hash to a stored constant."""
     hashes = json.loads((GOLDEN_DIR / "hashes.json").read_text())

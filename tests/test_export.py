@@ -46,5 +46,5 @@ def test_extended_xyz_frames(tmp_path):
 def test_export_never_overwrites_its_input(tmp_path):
     run(tmp_path)
     code, _, err = cli("export", tmp_path / "t.h5", "--format", "xdmf", "-o", tmp_path / "t.xdmf")
-    assert code == 2 and "would overwrite" in err
+    assert code == 2 and "the trajectory exported; choose another -o" in err
     assert h5py.File(tmp_path / "t.h5").attrs["complete"]

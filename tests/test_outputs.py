@@ -31,7 +31,7 @@ kind = "plane"
 point = [0.0, 0.0]
 normal = [0.0, 1.0]
 """
-LONG = ONE.replace("steps = 40", "steps = 1000000").replace('name = "solo"', 'name = "solo"\ngrid = [10, 10]\nspacing = [1.2, 1.2]')
+LONG = ONE.replace("steps = 40", "steps = 1000000").replace('name = "solo"', 'name = "solo"\ngrid = [5, 5]\nspacing = [1.2, 1.2]')
 
 
 def scene_file(tmp_path, text=ONE, name="s.toml"):
@@ -181,6 +181,7 @@ def test_4_a_full_disk_keeps_the_frames_written_and_says_so(tmp_path, monkeypatc
     assert cli("run", scene_file(tmp_path), "--resume", tmp_path / "o.h5", "-q")[0] == 0
 
 
+@pytest.mark.slow
 def test_4_a_real_full_file_system(tmp_path):
     """On a 12 MiB tmpfs: room for two blocks of the pile (needs root and mount; skipped where neither is to be had)."""
     mnt = tmp_path / "tiny"
@@ -343,6 +344,7 @@ def test_11_a_read_only_place_is_refused(tmp_path):
 
 
 # 12 --------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_12_thousands_of_coincident_blobs_stop_with_a_reason_not_exhausted_memory(tmp_path):
     text = ('[scene]\nsteps = 5\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.01\nvertices = 3\n'
             'grid = [100, 50]\nspacing = [1e-6, 1e-6]\n')

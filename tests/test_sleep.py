@@ -83,6 +83,7 @@ def test_without_sleeping_the_same_pile_is_still():
     assert np.hypot(*state.vel.T).max() < PILE_REST_VERTEX
 
 
+@pytest.mark.slow
 def test_a_pile_of_60_is_at_rest_14_s_after_the_drop_without_sleeping():
     """Issue 12's target on the pile of `python -m blobcli.tools.piles` (60 blobs of 32 vertices dropped
     into a box), over the whole second 13-14, not one frame: measured 0.05 / 3.2 mm/s. Without stick
@@ -195,8 +196,8 @@ def test_the_file_records_who_is_awake_and_resumes_the_sleep_state(tmp_path):
 
 
 @pytest.mark.parametrize("key, value, message", [("sleep", '"yes"', "must be true or false"),
-                                                 ("sleep_speed", "0.0", "must be > 0"),
-                                                 ("time_to_sleep", "-1.0", "must be > 0")])
+                                                 ("sleep_speed", "0.0", "must be >= 1e-09"),
+                                                 ("time_to_sleep", "-1.0", "must be >= 0.1")])
 def test_bad_sleep_settings_are_refused(tmp_path, key, value, message):
     path = tmp_path / "bad.toml"
     path.write_text(f"[scene]\n{key} = {value}\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n")

@@ -35,6 +35,7 @@ def export(h5_path, out, fmt: str) -> int:
     import shutil
     import tempfile
     out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         frames = _export(h5_path, work / out.name, fmt)

@@ -56,6 +56,18 @@ def install() -> None:
         _previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
 
 
+def caused_by_signal(error: BaseException) -> bool:
+    """Whether `error` wraps an Interrupted or KeyboardInterrupt (Python 3.11 turns one raised while a
+    class is created, in a __set_name__, into a RuntimeError caused by it)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, (Interrupted, KeyboardInterrupt)):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
 def pending() -> int | None:
     """The signal that arrived in a deferred section, if any (it stays pending until cleared)."""
     return _pending

@@ -8,6 +8,9 @@
 - `create_partial(path)` makes `<path>.partial` exclusively (O_EXCL | O_NOFOLLOW): never
   through a symlink, never over another run's frames.
 - `publish(partial, path)` renames the finished file into place atomically.
+- `replaced(path)` gives every other output (charts, tables, scene copies, exports, recordings) a
+  fresh temporary name beside `path`, renamed onto it when whole: no command writes through a
+  link it did not make (the rename replaces a planted link itself), and none leaves half a file.
 """
 
 from __future__ import annotations
@@ -15,9 +18,14 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import stat
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 NAME_MAX = 255  # bytes in one path component on Linux file systems
+MIN_FREE_BYTES = 1 << 16  # a device with less free space than this is full: refused before any work
+_statvfs = os.statvfs  # bound once: the writer's own free-space checks (h5md) are separate
 
 
 class OutputError(Exception):
@@ -42,12 +50,29 @@ def output_problem(path, suffixes=(".partial", ".lock")) -> str | None:
     p = Path(text)
     if text.endswith(os.sep) or p.name in ("", ".", ".."):
         return "names a directory, not a file"
+    longest = max((len((p.name + s).encode()) for s in ("", *suffixes)))
+    if longest > NAME_MAX:  # first: a longer name makes stat itself fail
+        return f"file name is too long ({longest} bytes with its {'/'.join(suffixes)} sidecars; at most {NAME_MAX})"
     if p.is_dir():
         return "is a directory"
-    longest = max((len((p.name + s).encode()) for s in ("", *suffixes)))
-    if longest > NAME_MAX:
-        return f"file name is too long ({longest} bytes with its {'/'.join(suffixes)} sidecars; at most {NAME_MAX})"
+    kind = _special_kind(p)
+    if kind:
+        return f"exists and is not a regular file ({kind}); refusing to replace it"
     return _place_problem(p.parent)
+
+
+def _special_kind(path: Path) -> str | None:
+    """What `path` is when it exists and is neither a regular file, a directory nor a link: a device,
+    a FIFO or a socket (a run with -o /dev/null must not replace the system's /dev/null)."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    for test, kind in ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return None
 
 
 def directory_problem(path) -> str | None:
@@ -66,7 +91,25 @@ def _place_problem(directory: Path) -> str | None:
                 return f"{ancestor} is not a directory"
             if not os.access(ancestor, os.W_OK | os.X_OK):
                 return f"cannot write in {ancestor} (read-only or no permission)"
-            return None
+            return _creation_problem(ancestor)
+    return None
+
+
+def _creation_problem(directory: Path) -> str | None:
+    """Why no file can be created in `directory` though its permissions allow it (/proc, a read-only
+    mount, a full disk, as root): found by creating one, then removing it."""
+    try:
+        fd, name = tempfile.mkstemp(dir=directory, prefix=".blobsim-probe-")
+    except OSError as e:
+        return f"cannot create a file in {directory} ({os.strerror(e.errno) if e.errno else e})"
+    os.close(fd)
+    os.unlink(name)
+    try:
+        free = _statvfs(directory)
+    except OSError:
+        return None
+    if free.f_bavail * free.f_frsize < MIN_FREE_BYTES:
+        return f"no space left on the device holding {directory}"
     return None
 
 
@@ -81,7 +124,11 @@ class OutputLock:
     def __enter__(self):
         self.lock_path.parent.mkdir(parents=True, exist_ok=True)
         while True:
-            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+            try:
+                fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+            except OSError as e:
+                what = "is a symlink" if e.errno == errno.ELOOP else f"cannot be created ({os.strerror(e.errno)})"
+                raise OutputError(f"{self.lock_path}: {what}; refusing to write {self.path}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -98,9 +145,13 @@ class OutputLock:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
         self.fd = fd
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except OSError as e:  # a full disk: no lock left behind
+            self.__exit__()
+            raise OutputError(f"{self.lock_path}: cannot write ({os.strerror(e.errno)})") from None
         return self
 
     def __exit__(self, *exc):
@@ -138,3 +189,37 @@ def publish(partial: Path, path: Path) -> None:
             raise OutputError(f"{path}: is a directory; the run's frames are in {partial}") from None
         raise OutputError(f"{path}: cannot replace ({os.strerror(e.errno)}); "
                           f"the run's frames are in {partial}") from None
+
+
+@contextmanager
+def replaced(path):
+    """Yield a fresh temporary path beside `path` (same suffix, created exclusively) to write the
+    whole output to; when the block ends without error it is renamed onto `path` (replacing a link
+    there, never writing through it), else removed."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix or ".tmp")
+    os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(name, 0o666 & ~umask)  # as an ordinary new file, not mkstemp's 0600
+    try:
+        yield Path(name)
+        os.replace(name, path)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise
+
+
+def write_text(path, text: str) -> None:
+    """`path`'s whole text, through `replaced`."""
+    with replaced(path) as tmp:
+        tmp.write_text(text)
+
+
+def holds_text(path, text: str) -> bool:
+    """Whether `path` is a regular file (not a link, FIFO or device) whose text is `text`."""
+    path = Path(path)
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode) and path.read_text() == text
+    except (OSError, UnicodeDecodeError):
+        return False

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..colliders import COLLIDERS
+from .outputs import replaced
 
 BATCH_FRAMES = 64  # frames per send_columns call
 LEGEND_BLOBS = 8  # per-blob legends are shown up to this many blobs
@@ -168,16 +169,18 @@ def replay(h5_path, rrd_path) -> int:
                 reach = np.array([np.minimum(reach[0], block.min(axis=0)), np.maximum(reach[1], block.max(axis=0))])
         if not np.all(np.isfinite(reach)):
             reach = np.zeros((2, 2))
-        recorder = RerunRecorder(rrd_path, scene, p["blob_offsets"][...], [text(n) for n in p["blob_names"][...]],
-                                 p["target_area"][...], float(p.attrs["dt"]), reach)
-        try:
-            for start in range(0, len(steps), BATCH_FRAMES):
-                stop = min(start + BATCH_FRAMES, len(steps))
-                block, a, k, w = pos["value"][start:stop], area[start:stop], kinetic[start:stop], awake[start:stop]
-                for i in range(stop - start):
-                    recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i])
-        finally:
-            recorder.close()
+        Path(rrd_path).parent.mkdir(parents=True, exist_ok=True)
+        with replaced(rrd_path) as tmp:  # whole or not at all, and never through a link planted there
+            recorder = RerunRecorder(tmp, scene, p["blob_offsets"][...], [text(n) for n in p["blob_names"][...]],
+                                     p["target_area"][...], float(p.attrs["dt"]), reach)
+            try:
+                for start in range(0, len(steps), BATCH_FRAMES):
+                    stop = min(start + BATCH_FRAMES, len(steps))
+                    block, a, k, w = pos["value"][start:stop], area[start:stop], kinetic[start:stop], awake[start:stop]
+                    for i in range(stop - start):
+                        recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i])
+            finally:
+                recorder.close()
         return len(steps)
 
 

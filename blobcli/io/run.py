@@ -25,10 +25,11 @@ import numpy as np
 from ..scene.schema import Scene
 from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
 from ..sim.model import SimulationError, build, build_params
-from ..sim.pipeline import advance, settings
+from ..sim.pipeline import advance, compile_step, settings
 from . import interrupts
 from .h5md import DiskFull, TrajectoryError, TrajectoryWriter
 from .outputs import OutputError, OutputLock, output_problem
+from .threads import ThreadChoice
 
 PROGRESS_SECONDS = 0.25  # the progress bar is redrawn at most this often
 CALL_SECONDS = 0.05  # wall time of one compiled call of the step at most (about): Python sees Ctrl-C,
@@ -67,7 +68,8 @@ class RunResult:
 
 
 def simulate(scene: Scene, path: str | Path | None = None, progress: bool = False,
-             resume: str | Path | None = None, replace_stale_partial: bool = False) -> RunResult:
+             resume: str | Path | None = None, replace_stale_partial: bool = False, announce=None,
+             threads: int | None = None) -> RunResult:
     """Run `scene` and write its trajectory to `path` (default: the scene's output path).
 
     With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new
@@ -75,7 +77,9 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
     bit for bit the trajectory of a run that was never interrupted. Raises OutputError
     (before any work) when `path` cannot be written or another run holds it. A `<path>.partial`
     left by a killed run is refused, unless `replace_stale_partial` (a sweep retrying a point
-    whose worker died): holding the lock proves no live run owns it."""
+    whose worker died): holding the lock proves no live run owns it. `announce` (io.notice.announcer)
+    is entered around a compile of the step, when its build is not in numba's disk cache. `threads`:
+    a fixed thread count for the step, or None for auto (io/threads.py)."""
     path = Path(path) if path is not None else scene.output_path
     problem = output_problem(path)
     if problem:
@@ -83,12 +87,32 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
     with interrupts.deferred(), OutputLock(path):  # a signal since the command began stops it before its first step
         if replace_stale_partial:
             path.with_name(path.name + ".partial").unlink(missing_ok=True)
-        return _run_locked(scene, path, progress, resume)
+        return _run_locked(scene, path, progress, resume, announce, threads)
 
 
-def _run_locked(scene, path, progress, resume) -> RunResult:
+def compile_scenes(scenes, announce=None) -> None:
+    """Compile the step, and the kernels that record a frame, for each distinct configuration among
+    `scenes`, or load them from numba's disk cache: a sweep does this once before it fans out, so that
+    its workers load the builds instead of each compiling them at once."""
+    seen = set()
+    for scene in scenes:
+        model, state = build(scene)
+        step_settings = settings(model, build_params(scene))
+        if (step_settings.config, model.parallel) not in seen:
+            seen.add((step_settings.config, model.parallel))
+            compile_step(state, model, step_settings, announce)
+            blob_measures(state, model)
+            first_runaway(state.position, RUNAWAY)
+
+
+def _run_locked(scene, path, progress, resume, announce, threads) -> RunResult:
     model, state = build(scene)
     params = build_params(scene)
+    with ThreadChoice(threads, model.parallel) as choice:  # before the writer: it records the threads
+        return _run_chosen(scene, path, progress, resume, announce, model, state, params, choice)
+
+
+def _run_chosen(scene, path, progress, resume, announce, model, state, params, choice) -> RunResult:
     target = np.abs(model.target_area)
     worst = 0.0
     writer = TrajectoryWriter(path, scene, model, params)
@@ -128,12 +152,14 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
             bar = tqdm(total=params.steps, initial=done, unit="step", file=sys.stderr, mininterval=PROGRESS_SECONDS,
                        leave=False)
         step_settings = settings(model, params)
+        compile_step(state, model, step_settings, announce)
         chunk = 1  # steps per compiled call: grown to about CALL_SECONDS of wall time
         while done < params.steps and interrupts.pending() is None:
-            count = min(chunk, params.steps - done, params.every - done % params.every)
+            threads, count = choice.plan(min(chunk, params.steps - done, params.every - done % params.every))
             t0 = time.perf_counter()
             ran = advance(state, model, params, count, step_settings=step_settings)
             elapsed = time.perf_counter() - t0
+            choice.observe(threads, ran, elapsed)
             done += ran
             if ran < count:
                 bad = first_runaway(state.position, RUNAWAY)
@@ -146,8 +172,9 @@ def _run_locked(scene, path, progress, resume) -> RunResult:
                 record(done)
             if bar is not None:
                 bar.update(ran)
-            rate = ran / max(elapsed, 1e-9)  # steps per second
-            chunk = max(1, min(2 * chunk, params.steps, int(rate * CALL_SECONDS)))
+            if threads == choice.current:  # not a probe of another thread count
+                rate = ran / max(elapsed, 1e-9)  # steps per second
+                chunk = max(1, min(2 * chunk, params.steps, int(rate * CALL_SECONDS)))
         if status == "complete" and interrupts.pending() is not None:
             status = "interrupted"
             message = f"stopped by signal {interrupts.pending()} after step {done}"

@@ -23,8 +23,9 @@ MAX_POLYGON_POINTS = 5_000  # explicit `points`: the self-crossing check is O(n�
 MAX_STEPS = 1_000_000_000  # steps of one run (190 days of simulated time at dt = 1/60 s)
 MAX_SUBSTEPS = 1_000
 MAX_ITERATIONS = 1_000
-MAX_STEP_WORK = 4_000_000_000  # substeps × iterations × vertices: one step stays seconds long, so
-#                                Ctrl-C (checked between steps) stays prompt
+MAX_STEP_WORK = 20_000_000  # substeps × iterations × vertices: one step stays under about a second on a
+#                            2-core machine (a 4,000-vertex blob at 100 × 50: 0.7 s per step), so Ctrl-C,
+#                            seen between compiled calls, is honoured within 2 s
 MIN_DT = 1e-9  # s
 MIN_LENGTH = 1e-6  # m: radii, sizes and segment lengths; smaller shapes lose their area to round-off
 MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no blob may start there
@@ -113,9 +114,11 @@ class SceneSettings:
                       "woken by a moving blob coming near", "bool")
     sleep_speed: float = key(0.005, "m/s", "a blob is at rest while it goes slower than this on average over "
                              "time_to_sleep: its centre stays within sleep_speed × time_to_sleep of where its rest "
-                             "began, and its turn × radius too", "float", positive)
-    time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps",
-                               "float", positive)
+                             "began, and its turn × radius too (at most 0.1 m/s: faster is not at rest)", "float",
+                             between(1e-9, 0.1))
+    time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps "
+                               "(at least 0.1 s: a shorter rest is a blob at the top of a bounce)", "float",
+                               between(0.1, 1e9))
 
 
 @dataclass(frozen=True)

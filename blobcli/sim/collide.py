@@ -445,18 +445,15 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
                 if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
                     _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                                      c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t)
-    for parity in range(2):
-        for q in numba.prange((strips - parity) // 2):
+    # phases (2) then (3), each even s then odd s: one prange loop, so the inlined contact code is
+    # compiled once in the parallel build (two loops compiled it twice: 25 s of a cold compile)
+    for phase in range(4):
+        shift, parity = 1 - phase // 2, phase % 2  # s|s+1 (shift 1), then s|s (shift 0)
+        for q in numba.prange((strips - parity + 1 - shift) // 2):
             s = parity + 2 * q
-            _resolve_between(s, s + 1, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                             c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
-                             crossing, backward, stick_edge, stick_t)
-    for parity in range(2):
-        for q in numba.prange((strips - parity + 1) // 2):
-            s = parity + 2 * q
-            _resolve_between(s, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                             c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
-                             crossing, backward, stick_edge, stick_t)
+            _resolve_between(s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
+                             material, c_edge, c_hit, contact_depth, center, radius, up_x, up_y, strip_of,
+                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t)
 
 
 @inline_kernel

@@ -3,11 +3,11 @@
 Each stage is a kernel over flat arrays (model.State: structure of arrays). `_advance` calls
 them in order, for as many steps as it is asked, in one compiled call: Python is entered only
 between calls (to record a frame, update the progress bar, see a Ctrl-C), never per substep.
-A stage a scene does not need (damping off, one blob, no statics) is
-not run: StepSettings says which, decided from the model when the call is made.
-
-The step is compiled twice from this one text (jit.stage_kernel): serial, and with every
-stage's parallel build, which scenes of 32 blobs or more run. Both give the same bits.
+A stage a scene does not need (one blob, no statics, another area method, sleeping off) is not
+run, and not compiled: the step is compiled from this one text once per configuration (what the
+scene uses: `Configuration`), each the first time a scene needs it, then loaded from numba's disk
+cache (jit.build). Each configuration has a serial build and a parallel one (every stage's parallel
+build), which scenes of 32 blobs or more run. All give the same bits.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ..jit import build, inline_kernel, stage_kernel
+from ..colliders import SOLVERS
+from ..jit import build, in_disk_cache, inline_kernel, stage_kernel
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
 from .collide import (
     PAIRS_PER_BLOB,
@@ -41,28 +42,48 @@ from .statics import collide_statics
 
 STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
-(DAMPING, PREDICT, BROAD_PHASE, PERIMETER, AREA, BLOB_DETECT, BLOB_RESOLVE, STATICS, VELOCITIES, RESTITUTION,
- BLOB_VELOCITIES, BLOB_RESTITUTION, SLEEP) = range(len(STAGES))
+# the stage clock's slots
+(LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE, LAP_STATICS,
+ LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 
+class Configuration(NamedTuple):
+    """What a scene uses, bound as constants into the step's build for it (jit.build): the step reads
+    each field as the global of its name in capitals (METHOD, COLLIDES, ...), below."""
+    method: int  # index into area.METHODS
+    collides: bool  # blob–blob stages: more than one blob
+    statics: bool  # static collider stage: any static collider (which kinds: statics.PLANES, ...)
+    planes: bool
+    segments: bool
+    circles: bool
+    polygons: bool
+    sleep: bool  # islands at rest go to sleep (sim/sleep.py)
+
+    def constants(self) -> dict:
+        return {name.upper(): value for name, value in self._asdict().items()}
+
+
+# The configuration names the step reads. These module values (every stage, area method kot) are never
+# run: `advance` runs the build for the scene's Configuration.
+METHOD, COLLIDES, STATICS, SLEEP = KOT, True, True, True
+
+
 class StepSettings(NamedTuple):
-    """Params and the model's flags, as the compiled step reads them."""
+    """Params and the model's numbers, as the compiled step reads them; `config`, what the scene
+    uses, decides which build of the step runs."""
     dt: float  # s
     substeps: int
     iterations: int
     gx: float  # m/s²
     gy: float
     damping: float  # 1/s
-    method: int  # index into area.METHODS
     up_x: float  # -g / |g| (0 without gravity): "above", for the stacking rule of sim/collide.py
     up_y: float
     rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
-    collides: bool  # blob–blob stages: more than one blob
-    statics: bool  # static collider stage: any static collider
-    sleep: bool  # islands at rest go to sleep (sim/sleep.py) ...
-    sleep_speed: float  # m/s ... once every blob has gone slower than this, on average ...
+    sleep_speed: float  # m/s: islands at rest go to sleep once every blob has gone slower than this, on average ...
     time_to_sleep: float  # s ... for this long
+    config: Configuration
 
 
 @stage_kernel
@@ -91,77 +112,77 @@ def _advance(steps, state, model, settings, clock):
             if c.damping > 0.0:
                 # (v - v_rigid) *= exp(-damping h)
                 damp_deformation(s.position, s.velocity, m.offsets, s.awake, damping)
-                t = _lap(clock, DAMPING, t)
+                t = _lap(clock, LAP_DAMPING, t)
             # x_prev <- x, v += g h, x += v h (rigid rotation exact); multipliers and contacts start at 0
             predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, m.offsets, s.awake, s.predicted, c.gx,
                     c.gy, h)
             s.area_lam[:] = 0.0
             s.perimeter_lam[:] = 0.0
             s.spring_lam[:] = 0.0
-            t = _lap(clock, PREDICT, t)
-            if c.collides:  # uniform grid of blob centres
+            t = _lap(clock, LAP_PREDICT, t)
+            if COLLIDES:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
                                                                  s.edges, s.blob_contact_depth, s.c_hit)
                 if count > PAIRS_PER_BLOB * blob_count:
                     return n, TOO_MANY_PAIRS, count
                 pair_impact = carry_impacts(pairs, blob_count, s.pair_key, s.pair_impact, s.pair_count)
-                t = _lap(clock, BROAD_PHASE, t)
+                t = _lap(clock, LAP_BROAD_PHASE, t)
             for it in range(c.iterations):
                 solve_perimeter(s.position, m.inv_mass, m.offsets, s.awake, m.rest_length, m.rest_perimeter,
                                 m.compliance, s.lam, s.perimeter_lam, h)  # XPBD
-                t = _lap(clock, PERIMETER, t)
+                t = _lap(clock, LAP_PERIMETER, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
-                if c.method == KOT:
+                if METHOD == KOT:
                     area_kot(s.position, m.inv_mass, m.offsets, s.awake, m.target_area)
-                elif c.method == XPBD:
+                elif METHOD == XPBD:
                     area_xpbd(s.position, m.inv_mass, m.offsets, s.awake, m.target_area, m.area_compliance, s.area_lam,
                               h)
-                elif c.method == GAS:
+                elif METHOD == GAS:
                     area_gas(s.position, m.inv_mass, m.offsets, s.awake, m.target_area, m.gas_pressure,
                              h * h / c.iterations)
-                elif c.method == SPRINGS:
+                elif METHOD == SPRINGS:
                     area_springs(s.position, m.inv_mass, m.blob_of, s.awake, m.spring_pairs, m.spring_rest,
                                  m.spring_compliance, s.spring_lam, h)
-                t = _lap(clock, AREA, t)
-                if pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
+                t = _lap(clock, LAP_AREA, t)
+                if COLLIDES and pairs.shape[0] > 0:  # a vertex inside another blob: pushed out, with friction
                     # contacts are found once per step, and again for blobs that went past their margin
                     keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
                                        s.center, s.radius, s.edges, pairs, partners, not found,
                                        (c.substeps - sub) * h, g, s.anchor, s.budget, s.moved, s.c_edge,
                                        s.stick_edge, s.stick_t)
                     found = True
-                    t = _lap(clock, BLOB_DETECT, t)
+                    t = _lap(clock, LAP_BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
                                           m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
                                           s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t)
-                    t = _lap(clock, BLOB_RESOLVE, t)
-                if c.statics:  # one kernel per collider kind
+                    t = _lap(clock, LAP_BLOB_RESOLVE, t)
+                if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.planes, m.segments,
                                     m.circles, m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
-                    t = _lap(clock, STATICS, t)
+                    t = _lap(clock, LAP_STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)
-            t = _lap(clock, VELOCITIES, t)
-            if c.statics:  # leave statics at e × impact speed, never faster
+            t = _lap(clock, LAP_VELOCITIES, t)
+            if STATICS:  # leave statics at e × impact speed, never faster
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
                             s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
-                t = _lap(clock, RESTITUTION, t)
-            if pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
+                t = _lap(clock, LAP_RESTITUTION, t)
+            if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
                 blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
                                         m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h)
-                t = _lap(clock, BLOB_VELOCITIES, t)
-            if c.collides:  # blob pairs leave each other at e × impact speed, never faster
+                t = _lap(clock, LAP_BLOB_VELOCITIES, t)
+            if COLLIDES:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
                                  s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
-                t = _lap(clock, BLOB_RESTITUTION, t)
-        if c.sleep:  # islands of blobs at rest fall asleep, islands with a mover wake
+                t = _lap(clock, LAP_BLOB_RESTITUTION, t)
+        if SLEEP:  # islands of blobs at rest fall asleep, islands with a mover wake
             awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
                                        s.c_edge, s.awake, s.still, s.still_center, s.still_angle, c.sleep_speed,
                                        c.time_to_sleep, c.dt)
-            t = _lap(clock, SLEEP, t)
+            t = _lap(clock, LAP_SLEEP, t)
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:
             return n, RUNAWAY_VERTEX, bad
@@ -186,6 +207,14 @@ def _now():
     return now
 
 
+def configuration(model: Model, params: Params) -> Configuration:
+    """What the scene uses: which build of the step runs it."""
+    kinds = {s.kind for s in model.statics}
+    return Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
+                         planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
+                         polygons="polygon" in kinds, sleep=params.sleep)
+
+
 def settings(model: Model, params: Params) -> StepSettings:
     """What the compiled step needs of params and the model."""
     g = math.hypot(params.gravity[0], params.gravity[1])
@@ -193,13 +222,39 @@ def settings(model: Model, params: Params) -> StepSettings:
     h = params.dt / params.substeps
     return StepSettings(dt=params.dt, substeps=params.substeps, iterations=params.iterations,
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
-                        method=METHODS.index(params.method), up_x=float(up[0]), up_y=float(up[1]),
-                        rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED), collides=model.collides,
-                        statics=bool(model.statics), sleep=params.sleep, sleep_speed=params.sleep_speed,
-                        time_to_sleep=params.time_to_sleep)
+                        up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
+                        sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep,
+                        config=configuration(model, params))
 
 
 NO_CLOCK = np.zeros(0)
+
+
+def step_build(model: Model, step_settings: StepSettings):
+    """The build of the step that runs this scene: for its configuration, serial or parallel."""
+    return build(_advance, model.parallel, step_settings.config.constants())
+
+
+def describe(model: Model, step_settings: StepSettings) -> str:
+    """The build of the step in words: 'kot, blob contacts, plane and polygon colliders, sleeping; parallel'."""
+    c = step_settings.config
+    kinds = [kind for kind, present in zip(SOLVERS, (c.planes, c.segments, c.circles, c.polygons)) if present]
+    parts = [METHODS[c.method]] + (["blob contacts"] if c.collides else []) \
+        + ([" and ".join(kinds) + " colliders"] if kinds else []) + (["sleeping"] if c.sleep else [])
+    return ", ".join(parts) + ("; parallel" if model.parallel else "; serial")
+
+
+def compile_step(state: State, model: Model, step_settings: StepSettings, announce=None) -> None:
+    """Compile the step that runs this scene, or load it from numba's disk cache, before its first step
+    (a call of no steps: the state is not touched). When the build is not in the cache, it is compiled
+    here (tens of seconds): `announce(description)`, a context manager, is entered around it."""
+    kernel = step_build(model, step_settings)
+    args = (0, state, model.arrays, step_settings, NO_CLOCK)
+    if announce is not None and in_disk_cache(kernel, args) is False:
+        with announce(describe(model, step_settings)):
+            kernel(*args)
+    else:
+        kernel(*args)
 
 
 def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
@@ -213,8 +268,8 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
     `blobsim bench` profiles the real step this way. `step_settings` (from `settings`) saves
     rebuilding them on every call."""
     timer = np.zeros(len(STAGES)) if clock is not None else NO_CLOCK
-    done, why, detail = build(_advance, model.parallel)(steps, state, model.arrays,
-                                                        step_settings or settings(model, params), timer)
+    step_settings = step_settings or settings(model, params)
+    done, why, detail = step_build(model, step_settings)(steps, state, model.arrays, step_settings, timer)
     if clock is not None:
         for name, seconds in zip(STAGES, timer):
             clock[name] = clock.get(name, 0.0) + float(seconds)

@@ -243,20 +243,25 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offse
 assert SOLVERS == ("plane", "segment", "circle", "polygon")  # the order collide_statics runs them in
 
 
+# The collider kinds a scene has, bound per scene (jit.build, pipeline.Configuration): a kind it lacks
+# is not compiled. These module values (every kind) are never run.
+PLANES = SEGMENTS = CIRCLES = POLYGONS = True
+
+
 @stage_kernel
 def collide_statics(pos, prev, blob_of, awake, blob_material, planes, segments, circles, polygons,
                     contact_normal, contact_depth, contact_material):
     """Push vertices out of every static collider: one kernel per solver kind present. Each kind
     comes as its rows (geom, shape_offsets, material, aabb: model.StaticSet), empty if absent."""
-    if planes[0].shape[0] > 0:
+    if PLANES:
         _collide_plane(pos, prev, blob_of, awake, blob_material, *planes, contact_normal, contact_depth,
                        contact_material)
-    if segments[0].shape[0] > 0:
+    if SEGMENTS:
         _collide_segment(pos, prev, blob_of, awake, blob_material, *segments, contact_normal, contact_depth,
                          contact_material)
-    if circles[0].shape[0] > 0:
+    if CIRCLES:
         _collide_circle(pos, prev, blob_of, awake, blob_material, *circles, contact_normal, contact_depth,
                         contact_material)
-    if polygons[0].shape[0] > 0:
+    if POLYGONS:
         _collide_polygon(pos, prev, blob_of, awake, blob_material, *polygons, contact_normal, contact_depth,
                          contact_material)

@@ -37,6 +37,8 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "c_ratio_1x1": 3.0,
     "thread_speedup_2": 1.8,
     "sleeping_over_awake": 0.10,
+    "side_by_side_over_alone": 2.0,  # two runs of the 60-blob pile started together, each against its time alone
+    "beside_busy_over_alone": 2.5,  # one beside a busy-loop process
 }
 
 
@@ -413,6 +415,44 @@ def measure_sweep(points: int, steps: int) -> dict:
     return {"points": points, "steps": steps, "loop_s": loop, "sweep_s": swept, "speedup": loop / swept}
 
 
+def _start_run(scene: Path, out: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "blobcli", "run", str(scene), "-o", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _run_wall(proc: subprocess.Popen) -> float:
+    """The run's own wall time, from its summary line ("... simulated in X s ..."): not Python's start-up."""
+    out, err = proc.communicate()
+    if proc.returncode != 0:
+        raise RuntimeError(f"bench run failed: {err.strip()}")
+    return float(out.split(" simulated in ")[1].split(" s ")[0])
+
+
+def measure_busy(blobs: int, steps: int, tries: int) -> dict:
+    """`blobsim run` of the piled scene (sleeping off, default threads: auto) alone, two started
+    together, and one beside a busy-loop process (io/threads.py): the median alone, and the worst
+    run of `tries` tries side by side and beside the busy loop."""
+    with tempfile.TemporaryDirectory() as d:
+        scene = Path(d) / "pile.toml"
+        scene.write_text(scene_text(blobs, "piled", f"steps = {steps}"))
+        _run_wall(_start_run(scene, Path(d) / "warm.h5"))  # the build compiled (or loaded) once
+        alone, pair, busy = [], [], []
+        for k in range(tries):
+            alone.append(_run_wall(_start_run(scene, Path(d) / f"a{k}.h5")))
+            both = [_start_run(scene, Path(d) / f"p{k}{j}.h5") for j in range(2)]
+            pair += [_run_wall(p) for p in both]
+            loop = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+            try:
+                busy.append(_run_wall(_start_run(scene, Path(d) / f"b{k}.h5")))
+            finally:
+                loop.kill()
+                loop.wait()
+    solo = statistics.median(alone)
+    return {"blobs": blobs, "steps": steps, "tries": tries, "alone_s": solo, "side_by_side_s": pair,
+            "beside_busy_s": busy, "side_by_side_over_alone": max(pair) / solo,
+            "beside_busy_over_alone": max(busy) / solo}
+
+
 def run_bench(quick: bool = False) -> dict:
     counts = (1, 10) if quick else (1, 10, 100, 1000)
     repeats = 3 if quick else 5
@@ -434,6 +474,7 @@ def run_bench(quick: bool = False) -> dict:
     results["c_reference"] = [measure_c_reference(counts[-1], s, i, 3 if quick else 10, 3 if quick else 5)
                               for s, i in ((4, 2), (1, 1))]
     results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
+    results["busy"] = measure_busy(60, 200 if quick else 600, 1 if quick else 5)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
     results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 1500, 5 if quick else 20)
     results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
@@ -482,6 +523,11 @@ def format_bench(r: dict) -> str:
     lines.append(f"core at {th['blobs']} blobs: " + ", ".join(f"{ns:.1f} ns on {n} thread{'s' * (n > 1)}"
                                                              for n, ns in th["ns_by_threads"].items())
                  + f", {th['speedup']:.2f}x (target >= {t['thread_speedup_2']:g}x on 2)")
+    b = r["busy"]
+    lines.append(f"{b['blobs']}-blob pile, {b['steps']} steps, auto threads: {b['alone_s']:.2f} s alone; two side by "
+                 f"side, worst of {b['tries']} tries {b['side_by_side_over_alone']:.2f}x (target <= "
+                 f"{t['side_by_side_over_alone']:g}x); beside a busy loop {b['beside_busy_over_alone']:.2f}x "
+                 f"(target <= {t['beside_busy_over_alone']:g}x)")
     if ("piled", 1000) in rows:
         piled, apart = rows[("piled", 1000)], rows[("apart", 1000)]
         lines.append(f"piled substep at 1000 blobs: {piled['ms_per_substep']:.2f} ms "
@@ -533,5 +579,6 @@ def main(quick: bool, json_path: str | None) -> int:
     results = run_bench(quick)
     print(format_bench(results))
     if json_path:
-        Path(json_path).write_text(json.dumps(results, indent=2) + "\n")
+        from ..io.outputs import write_text
+        write_text(json_path, json.dumps(results, indent=2) + "\n")
     return 0

@@ -14,6 +14,12 @@ import sys
 from typing import Callable, Iterator
 
 RETRIES = 2  # a task whose worker died (killed, out of memory) is run again elsewhere this often
+MAX_WORKERS_PER_CORE = 4  # --workers at most this many local worker processes per core
+CONNECT_SECONDS = 10  # a scheduler that does not answer within this is an error
+
+
+class SchedulerError(Exception):
+    """The Dask scheduler named cannot be reached; the message is one line for the user."""
 
 
 def default_workers() -> int:
@@ -50,7 +56,14 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                                host="127.0.0.1", silence_logs=40,
                                env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"})
-    client = Client(cluster if cluster is not None else scheduler, timeout="30s")
+    try:
+        client = Client(cluster if cluster is not None else scheduler, timeout=f"{CONNECT_SECONDS}s")
+    except (OSError, TimeoutError, ValueError) as e:
+        if cluster is not None:
+            cluster.close()
+            raise
+        raise SchedulerError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_SECONDS} s "
+                             f"({type(e).__name__})") from None
     bar = _bar(len(tasks), label, progress)
     futures = {}
     try:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..colliders import COLLIDERS
-from ..io.h5md import open_trajectory, read_trajectory, stored_scene
+from ..io.h5md import TrajectoryError, open_trajectory, read_trajectory, stored_scene
 from ..io.recording import blob_colors
 
 
@@ -37,6 +37,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
         scene = stored_scene(f, h5_path)
     picks = np.unique(np.linspace(0, len(t.step) - 1, frames).round().astype(int))
     finite = t.position[np.isfinite(t.position).all(axis=2)]
+    if len(finite) == 0:
+        raise TrajectoryError(f"{h5_path}: no vertex has a finite position in any frame: nothing to draw")
     lo, hi = finite.min(axis=0), finite.max(axis=0)
     pad = 0.08 * max(float(np.max(hi - lo)), 0.5)
     lo, hi = lo - pad, hi + pad
@@ -59,6 +61,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     fig.tight_layout()
     png_path = Path(png_path)
     png_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png_path, dpi=100)
+    from ..io.outputs import replaced
+    with replaced(png_path) as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
     return png_path

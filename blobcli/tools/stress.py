@@ -26,6 +26,7 @@ import numpy as np
 from ..colliders import COLLIDERS
 from ..geometry import first_crossing, ring_areas
 from ..io.h5md import read_trajectory
+from ..io.outputs import replaced, write_text
 from ..scene.schema import METHODS, load_scene, parse_scene, with_overrides
 from .executor import run_tasks
 
@@ -213,7 +214,8 @@ def chart_map(smap: dict, methods, png: Path):
         ax.set_title(method, fontsize=9)
     fig.suptitle("stability map: a blob dropped at 3 m/s onto a floor and a bump (2 s)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    with replaced(png) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 
@@ -229,14 +231,14 @@ def run_stress(methods=METHODS, out_dir="outputs/stress", quick=False, scheduler
         verdicts[i] = verdict
     smap = stability_map(methods, out_dir, quick, scheduler, workers)
     chart_map(smap, methods, out_dir / "stability_map.png")
-    with open(out_dir / "stress.csv", "w", newline="") as f:
+    with replaced(out_dir / "stress.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["scene", "method", "passed", "failures", "wall_time_s"])
         for v in verdicts:
             w.writerow([v.scene, v.method, v.passed, "; ".join(v.failures), f"{v.wall_time:.3f}"])
     table = format_table(verdicts, methods)
-    (out_dir / "stress.md").write_text(table + "\n")
-    (out_dir / "stability_map.json").write_text(json.dumps(
+    write_text(out_dir / "stress.md", table + "\n")
+    write_text(out_dir / "stability_map.json", json.dumps(
         {f"{m} dt={dt:g} {smap['knobs'][m][0]}={v:g}": fails for (m, dt, v), fails in smap["grid"].items()}, indent=1))
     return {"verdicts": verdicts, "map": smap, "table": table, "out_dir": out_dir}
 

@@ -122,7 +122,8 @@ def study_method(scene, method, out_dir: Path, every: int) -> list[Point]:
 
 
 def write_csv(points, path):
-    with open(path, "w", newline="") as f:
+    from ..io.outputs import replaced
+    with replaced(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["method", "dt_s", "substeps", "iterations", "wall_time_s", "trajectory_error", "area_error",
                     "perimeter_error", "status"])
@@ -161,7 +162,9 @@ def chart(points, path, title):
     axes[0].legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from ..io.outputs import replaced
+    with replaced(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 

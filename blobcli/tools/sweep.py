@@ -120,7 +120,9 @@ def load_sweep(path) -> Sweep:
             problems.add(path + ("key",), complaint, key)
         if not isinstance(values, list) or not values:
             problems.add(path + ("values",), "must be a non-empty list", values)
-        if not complaint and isinstance(values, list) and values:
+        if not complaint and any(a.key == key for a in axes):
+            problems.add(path + ("key",), "the same key as an earlier axis (its points would repeat)", key)
+        elif not complaint and isinstance(values, list) and values:
             axes.append(Axis(key, tuple(values)))
     if problems.items:
         raise SceneError(problems.items)
@@ -208,18 +210,21 @@ def _toml_text(doc: dict) -> str:
 # --- running ------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=False,
-              announce=print) -> tuple[dict, bool]:
+              announce=print, compiling=None) -> tuple[dict, bool]:
     """Write each point's scene, run the points that are not done (resuming interrupted ones)
     through the executor, and return ({point: summary row}, interrupted). A Ctrl-C stops the
-    loop; points a worker finished but had not yet reported are read back from their files."""
+    loop; points a worker finished but had not yet reported are read back from their files.
+    On this machine (no scheduler), the step is compiled here first, once per configuration
+    (`compiling`: io.notice.announcer, entered around each compile), not once in each worker."""
     from ..io.interrupts import Interrupted, pending
+    from ..io.outputs import holds_text, write_text
     from .executor import run_tasks
     out.mkdir(parents=True, exist_ok=True)
     rows, tasks, index = {}, [], []
     for k, text in enumerate(sweep.texts):
         toml, h5 = out / f"point-{k:04d}.toml", out / f"point-{k:04d}.h5"
-        if not toml.exists() or toml.read_text() != text:
-            toml.write_text(text)
+        if not holds_text(toml, text):
+            write_text(toml, text)
         state = point_state(h5, text)
         if state == "done":
             rows[k] = reused_row(h5)
@@ -227,6 +232,9 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
             tasks.append((str(toml), str(h5), state == "resume"))
             index.append(k)
     announce(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}")
+    if tasks and scheduler is None:
+        from ..io.run import compile_scenes
+        compile_scenes([load_scene(toml) for toml, _, _ in tasks], compiling)
     try:
         for i, row in run_tasks(run_point, tasks, scheduler, workers, progress=progress, label="points"):
             rows[index[i]] = row
@@ -299,8 +307,9 @@ def reused_row(h5: Path) -> dict:
 
 
 def write_summary(sweep: Sweep, rows: dict, out: Path) -> Path:
+    from ..io.outputs import replaced
     path = out / "summary.csv"
-    with open(path, "w", newline="") as f:
+    with replaced(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["point", *[a.key for a in sweep.axes], *COLUMNS[1:]])
         for k, values in enumerate(sweep.points):
@@ -322,7 +331,9 @@ def chart(sweep: Sweep, rows: dict, png: Path, metrics=("worst_area_error",)) ->
     for ax, metric in zip(axes[0], metrics):
         _plot_metric(ax, sweep, rows, metric)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    from ..io.outputs import replaced
+    with replaced(png) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 

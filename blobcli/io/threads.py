@@ -1,0 +1,96 @@
+"""How many threads a run's step uses, call by call.
+
+Each parallel region of the parallel build ends at a barrier where the threads wait for each other
+(numba's OpenMP layer: libgomp's threads spin a while, then sleep). On an idle 2-core machine two
+threads make a 1,000-blob step ~1.8× faster. But when another process wants a core, one of the run's
+threads is descheduled for a time slice at some barrier and the other waits it out, at each of the
+step's regions: two 60-blob runs started together took 4.8, 8.1 and 49 s each against 2.0 s alone
+(dev machine, 2026-11-25). One thread has no barrier to wait at.
+
+So an auto run (no --threads, no NUMBA_NUM_THREADS) watches its own speed: now and then it runs one
+short call on the other thread count (all of numba's threads, or one), and whichever gave the
+faster step runs until the next probe. While probes keep losing they come less often (the interval
+doubles, up to PROBE_MAX_SECONDS); a step that suddenly slows (something started beside the run)
+brings the next probe forward. The thread count never changes a bit of the result (jit.stage_kernel:
+a prange iteration writes only its own slots), only the speed.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numba
+
+FIRST_PROBE_SECONDS = 0.1  # wall time before the first probe ...
+PROBE_SECONDS = 0.5  # ... then between probes ...
+PROBE_MAX_SECONDS = 8.0  # ... doubled while they lose, up to this
+PROBE_SHARE = 0.125  # a probe runs this share of the steps of a normal call (at least one step)
+SWITCH = 0.9  # the other count takes over when its step takes less than this × the current one's
+SLOWDOWN = 2.5  # a call this many times slower per step than the current count's average probes at once
+AVERAGE = 0.3  # weight of the newest call in the current count's average seconds per step
+
+
+def available() -> int:
+    """The threads numba's pool has (NUMBA_NUM_THREADS, default: the cores)."""
+    return numba.config.NUMBA_NUM_THREADS
+
+
+def fixed_by_environment() -> bool:
+    """Whether the user fixed the thread count for numba (NUMBA_NUM_THREADS): then it is used as is."""
+    return bool(os.environ.get("NUMBA_NUM_THREADS", "").strip())
+
+
+class ThreadChoice:
+    """The thread count for each compiled call of a run. `threads`: a fixed count (--threads N), or
+    None for auto: all of numba's threads (or NUMBA_NUM_THREADS, fixed), falling back to one while
+    more are slower. A serial build (small scenes) runs on one thread whatever the count."""
+
+    def __init__(self, threads: int | None, parallel: bool):
+        most = threads or available()
+        self.adaptive = threads is None and parallel and most > 1 and not fixed_by_environment()
+        self.most = most if parallel else 1
+        self.current = self.most
+        self.average = math.inf  # seconds per step at the current count
+        self.interval = PROBE_SECONDS
+        self.next_probe = time.perf_counter() + FIRST_PROBE_SECONDS
+        self.switches = 0
+        self._before = numba.get_num_threads()
+
+    def __enter__(self):
+        numba.set_num_threads(self.most)
+        return self
+
+    def __exit__(self, *exc):
+        numba.set_num_threads(self._before)  # the calling thread's count, as it was (tests run many runs)
+
+    def plan(self, steps: int) -> tuple[int, int]:
+        """(threads, steps) for the next call, which would run `steps` steps: a probe is shorter."""
+        if self.adaptive and time.perf_counter() >= self.next_probe:
+            threads, steps = (1 if self.current > 1 else self.most), max(1, int(steps * PROBE_SHARE))
+        else:
+            threads = self.current
+        numba.set_num_threads(threads)
+        return threads, steps
+
+    def observe(self, threads: int, steps: int, seconds: float) -> None:
+        """A call on `threads` threads ran `steps` steps in `seconds` of wall time."""
+        if not self.adaptive or steps <= 0:
+            return
+        per_step = seconds / steps
+        now = time.perf_counter()
+        if threads != self.current:  # a probe
+            if per_step < SWITCH * self.average:
+                self.current, self.average, self.interval = threads, per_step, PROBE_SECONDS
+                self.switches += 1
+            else:
+                self.interval = min(2.0 * self.interval, PROBE_MAX_SECONDS)
+            self.next_probe = now + self.interval
+        elif math.isinf(self.average):
+            self.average = per_step
+        else:
+            if per_step > SLOWDOWN * self.average:  # slowed sharply: is the other count better now?
+                self.next_probe = now
+                self.interval = PROBE_SECONDS
+            self.average += AVERAGE * (per_step - self.average)

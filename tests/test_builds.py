@@ -1,0 +1,75 @@
+"""The step is compiled per configuration: a scene compiles only the stages it runs, and says so
+while it compiles (issue "The first run and the tests in seconds")."""
+
+import subprocess
+import sys
+
+from conftest import FLOOR, cli, scene
+
+from blobcli import build, build_params
+from blobcli.jit import in_disk_cache
+from blobcli.sim import pipeline
+
+ONE_BLOB = """
+[scene]
+duration = 0.1
+[[blob]]
+center = [0.0, 1.0]
+radius = 0.5
+""" + FLOOR
+
+
+def test_a_one_blob_scene_compiles_no_blob_contact_stage_and_no_other_area_method():
+    """In a fresh process: after a one-blob run on a floor, none of the blob–blob stages, other
+    area methods, other collider kinds or parallel builds has been compiled."""
+    code = f"""
+import numba
+from blobcli import parse_scene, build, build_params, step
+from blobcli.sim import collide, area, statics, pipeline
+from blobcli import jit
+sc = parse_scene({ONE_BLOB!r}, "t")
+model, state = build(sc)
+step(state, model, build_params(sc))
+unused = [collide.find_blob_pairs, collide.keep_blob_contacts, collide.resolve_blob_contacts,
+          collide.blob_contact_velocities, collide.blob_restitution, area.area_xpbd, area.area_gas,
+          area.area_springs, statics._collide_segment, statics._collide_circle, statics._collide_polygon]
+print([k.py_func.__name__ for k in unused if k.overloads])
+print([b.py_func.__name__ for b in jit._BUILDS.values() if b.overloads and b.py_func.__name__.endswith("_parallel")])
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[:2] == ["[]", "[]"], r.stdout
+
+
+def test_each_configuration_has_its_own_build_and_one_build_serves_a_configuration():
+    model, state = build(scene(ONE_BLOB))
+    params = build_params(scene(ONE_BLOB))
+    kot = pipeline.settings(model, params)
+    xpbd = pipeline.settings(model, build_params(scene(ONE_BLOB.replace("[scene]", "[scene]\nmethod = \"xpbd\""))))
+    assert pipeline.step_build(model, kot) is pipeline.step_build(model, kot)
+    assert pipeline.step_build(model, kot) is not pipeline.step_build(model, xpbd)
+    assert "method0" in pipeline.step_build(model, kot).py_func.__name__
+    assert pipeline.describe(model, kot) == "kot, plane colliders, sleeping; serial"
+
+
+def test_numba_cache_is_asked_correctly_for_a_build_it_holds():
+    """in_disk_cache reads numba's private cache index: after a run, the step's build is there (True,
+    not None: numba's internals still answer as this code expects)."""
+    sc = scene(ONE_BLOB)
+    model, state = build(sc)
+    step_settings = pipeline.settings(model, build_params(sc))
+    pipeline.compile_step(state, model, step_settings)
+    kernel = pipeline.step_build(model, step_settings)
+    assert in_disk_cache(kernel, (0, state, model.arrays, step_settings, pipeline.NO_CLOCK)) is True
+
+
+def test_a_cold_build_prints_what_it_compiles_unless_quiet(tmp_path, monkeypatch):
+    toml = tmp_path / "one.toml"
+    toml.write_text(ONE_BLOB)
+    monkeypatch.setattr(pipeline, "in_disk_cache", lambda kernel, args: False)  # as with an empty cache
+    code, out, err = cli("run", toml, "-o", tmp_path / "a.h5")
+    assert code == 0, err
+    assert "blobsim: compiling the step for this scene (kot, plane colliders, sleeping; serial): once per machine" \
+        in err
+    code, out, err = cli("run", toml, "-o", tmp_path / "b.h5", "-q")
+    assert code == 0 and "compiling" not in err, err

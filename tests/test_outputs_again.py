@@ -1,0 +1,185 @@
+"""Nothing lost, round two: one regression test per defect of the second hostile test (issue
+"Nothing lost, round two"), numbered as there."""
+
+import os
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import cli
+
+ONE = """[scene]
+steps = 20
+[[blob]]
+name = "solo"
+center = [0.0, 1.0]
+radius = 0.5
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+"""
+SWEEP = """[sweep]
+scene = "one.toml"
+[[sweep.axis]]
+key = "blob[*].friction"
+values = [0.2, 0.4]
+"""
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    """A small complete trajectory."""
+    d = tmp_path_factory.mktemp("good")
+    (d / "one.toml").write_text(ONE)
+    code, out, err = cli("run", d / "one.toml", "-o", d / "good.h5", "-q")
+    assert code == 0, err
+    return d / "good.h5"
+
+
+def test_1_sweep_never_writes_through_links_planted_in_its_output(tmp_path):
+    (tmp_path / "one.toml").write_text(ONE)
+    (tmp_path / "od.toml").write_text(SWEEP)
+    out = tmp_path / "o" / "od"
+    out.mkdir(parents=True)
+    precious, p2 = tmp_path / "precious.txt", tmp_path / "p2.txt"
+    precious.write_text("precious")
+    p2.write_text("p2")
+    (out / "point-0000.toml").symlink_to(precious)
+    (out / "summary.csv").symlink_to(p2)
+    (out / "summary.png").symlink_to(p2)
+    code, _, err = cli("sweep", tmp_path / "od.toml", "-o", tmp_path / "o", "--workers", "0", "-q")
+    assert code == 0, err
+    assert precious.read_text() == "precious" and p2.read_text() == "p2"
+    for name in ("point-0000.toml", "summary.csv", "summary.png"):
+        assert stat.S_ISREG(os.lstat(out / name).st_mode), name  # the link itself was replaced
+    assert "friction = 0.2" in (out / "point-0000.toml").read_text()
+
+
+def test_2_an_output_that_exists_and_is_not_a_regular_file_is_refused(tmp_path, good):
+    fifo = tmp_path / "fifo.png"  # .png: render keeps the name as it is
+    os.mkfifo(fifo)
+    places = [fifo]
+    if os.geteuid() == 0:  # a device node, as the hostile test made one
+        dev = tmp_path / "dn.png"
+        os.mknod(dev, stat.S_IFCHR | 0o600, os.makedev(1, 3))
+        places.append(dev)
+    for place in places:
+        kind = os.lstat(place).st_mode
+        for args in (("run", good.parent / "one.toml", "-o", place, "--steps", "2", "-q"),
+                     ("export", good, "--format", "xyz", "-o", place),
+                     ("render", good, "-o", place)):
+            code, _, err = cli(*args)
+            assert code == 2 and "is not a regular file" in err, (args, err)
+        assert os.lstat(place).st_mode == kind  # still what it was
+
+
+def test_3_export_never_overwrites_a_sidecar_it_did_not_write(tmp_path, good):
+    other = tmp_path / "other.h5"
+    shutil.copy(good, other)
+    before = other.read_bytes()
+    code, _, err = cli("export", good, "--format", "xdmf", "-o", tmp_path / "other.xdmf")
+    assert code == 2 and "other.h5: exists and is not the heavy data" in err, err
+    assert other.read_bytes() == before
+    os.link(good, tmp_path / "linked.h5")  # the input under another name: refused by identity
+    code, _, err = cli("export", good, "--format", "xdmf", "-o", tmp_path / "linked.xdmf")
+    assert code == 2 and "is " + str(good) in err, err
+    # its own earlier heavy data is replaced on a second export to the same place
+    for _ in range(2):
+        code, _, err = cli("export", good, "--format", "xdmf", "-o", tmp_path / "mine.xdmf")
+        assert code == 0, err
+
+
+def test_4_sweep_workers_are_bounded(tmp_path):
+    (tmp_path / "one.toml").write_text(ONE)
+    (tmp_path / "od.toml").write_text(SWEEP)
+    for n, message in (("1000", "must be from 0 to"), ("-1", "must be from 0 to")):
+        code, _, err = cli("sweep", tmp_path / "od.toml", "-o", tmp_path / "o", "--workers", n)
+        assert code == 2 and message in err and f"(got {n})" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_5_impossible_output_places_are_bad_input_before_any_work(tmp_path, good):
+    (tmp_path / "one.toml").write_text(ONE)
+    (tmp_path / "od.toml").write_text(SWEEP)
+    long_name = tmp_path / ("x" * 300 + ".xyz")
+    lock_link = tmp_path / "out.h5"
+    (tmp_path / "out.h5.lock").symlink_to(tmp_path / "elsewhere")
+    cases = [("export", good, "--format", "xyz", "-o", "/proc/x.xyz"),
+             ("export", good, "--format", "xyz", "-o", long_name),
+             ("sweep", tmp_path / "od.toml", "-o", "/proc/nope"),
+             ("run", tmp_path / "one.toml", "-o", "/proc/x.h5", "-q"),
+             ("render", good, "-o", "/proc/x.png"),
+             ("run", tmp_path / "one.toml", "-o", lock_link, "-q"),
+             ("bench", "--quick", "--json", "/proc/nope/x.json"),
+             ("sweep", tmp_path / "od.toml", "-o", ""),
+             ("export", good, "--format", "xyz", "-o", "")]
+    for args in cases:
+        t0 = time.perf_counter()
+        code, _, err = cli(*args)
+        assert code == 2 and err.count("\n") >= 1 and "Traceback" not in err, (args, err)
+        assert time.perf_counter() - t0 < 5.0, args  # refused before any work
+    assert not (tmp_path / "elsewhere").exists() and not lock_link.exists()
+    # a missing directory is made, as `run` makes it
+    code, _, err = cli("export", good, "--format", "xyz", "-o", tmp_path / "nodir" / "x.xyz")
+    assert code == 0 and (tmp_path / "nodir" / "x.xyz").is_file(), err
+
+
+def test_6_a_bad_scheduler_is_bad_input():
+    code, _, err = cli("sweep", "whatever.toml", "--scheduler", "nonsense")
+    assert code == 2 and "--scheduler" in err and "'nonsense'" in err, err
+
+
+@pytest.mark.slow
+def test_6_a_scheduler_that_does_not_answer_is_bad_input_within_the_connect_timeout(tmp_path):
+    from blobcli.tools.executor import CONNECT_SECONDS
+    (tmp_path / "one.toml").write_text(ONE)
+    (tmp_path / "od.toml").write_text(SWEEP)
+    t0 = time.perf_counter()
+    code, _, err = cli("sweep", tmp_path / "od.toml", "-o", tmp_path / "o", "--scheduler", "tcp://127.0.0.1:1", "-q")
+    assert code == 2 and "tcp://127.0.0.1:1" in err and err.count("\n") == 2, err  # the sweep line, then this one
+    assert time.perf_counter() - t0 < CONNECT_SECONDS + 10
+
+
+def test_8_a_signal_while_python_imports_exits_130_without_a_traceback(tmp_path):
+    """The installed `blobsim` command, signalled 0.05-0.2 s after its start: handlers go in before the
+    heavy imports (blobcli.__main__.entry)."""
+    script = shutil.which("blobsim", path=str(Path(sys.executable).parent))
+    assert script is not None
+    for delay in (0.05, 0.1, 0.15, 0.2):
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            proc = subprocess.Popen([script, "check", "--help"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True)
+            time.sleep(delay)
+            proc.send_signal(signum)
+            out, err = proc.communicate(timeout=60)
+            assert proc.returncode in (0, 130), (delay, signum, proc.returncode, err)  # 0: done before the signal
+            assert "Traceback" not in err, err
+
+
+def test_10_render_of_a_trajectory_with_no_finite_position_is_bad_input(tmp_path, good):
+    bad = tmp_path / "nan.h5"
+    shutil.copy(good, bad)
+    with h5py.File(bad, "r+") as f:
+        v = f["particles/blobs/position/value"]
+        v[...] = np.nan
+    code, _, err = cli("render", bad, "-o", tmp_path / "x.png")
+    assert code == 2 and "no vertex has a finite position" in err, err
+
+
+def test_questionable_duplicate_sweep_axes_and_sleep_bounds_are_refused(tmp_path):
+    (tmp_path / "one.toml").write_text(ONE)
+    (tmp_path / "dup.toml").write_text(SWEEP + SWEEP.split("\n", 2)[2])
+    code, _, err = cli("sweep", tmp_path / "dup.toml", "-o", tmp_path / "o")
+    assert code == 2 and "the same key as an earlier axis" in err, err
+    for line, message in (("sleep_speed = 1e308", "must be <= 0.1"), ("time_to_sleep = 1e-9", "must be >= 0.1")):
+        (tmp_path / "s.toml").write_text(ONE.replace("[scene]", f"[scene]\n{line}"))
+        code, _, err = cli("check", tmp_path / "s.toml")
+        assert code == 2 and message in err, err

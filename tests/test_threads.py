@@ -1,0 +1,93 @@
+"""How many threads a run uses (issue "Fast on a busy machine"): the choice, --threads, and the same
+bits whatever the count, changed call by call."""
+
+from pathlib import Path
+
+import numba
+import pytest
+from conftest import cli
+
+from blobcli import load_scene, read_trajectory, simulate
+from blobcli.io import threads as threads_module
+from blobcli.io.threads import PROBE_MAX_SECONDS, PROBE_SECONDS, ThreadChoice
+from blobcli.tools.compare import compare_files
+
+ROOT_SCENES = Path(__file__).resolve().parent.parent / "scenes"
+
+
+def auto_choice(monkeypatch, most=2):
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    monkeypatch.setattr(threads_module, "available", lambda: most)
+    return ThreadChoice(None, parallel=True)
+
+
+def probe(choice, per_step_now, per_step_probe):
+    """One normal call at per_step_now s/step, then a probe at per_step_probe; returns the probe's threads."""
+    threads, steps = choice.plan(80)
+    choice.observe(threads, steps, per_step_now * steps)
+    choice.next_probe = 0.0
+    threads, steps = choice.plan(80)
+    assert threads != choice.current and steps == 10  # a probe: the other count, an eighth of the steps
+    choice.observe(threads, steps, per_step_probe * steps)
+    return threads
+
+
+def test_auto_falls_back_to_one_thread_when_it_is_faster_and_comes_back(monkeypatch):
+    with auto_choice(monkeypatch) as choice:
+        assert choice.adaptive and choice.current == 2
+        assert probe(choice, 1e-3, 5e-4) == 1 and choice.current == 1  # the other core is busy: one thread wins
+        assert probe(choice, 1e-3, 4e-4) == 2 and choice.current == 2  # it is free again
+
+
+def test_probes_that_lose_come_less_often_and_a_sudden_slowdown_probes_at_once(monkeypatch):
+    with auto_choice(monkeypatch) as choice:
+        intervals = []
+        for _ in range(8):
+            probe(choice, 1e-3, 2e-3)
+            intervals.append(choice.interval)
+        assert choice.current == 2
+        assert intervals[0] == 2 * PROBE_SECONDS and intervals[-1] == PROBE_MAX_SECONDS
+        choice.next_probe = float("inf")
+        threads, steps = choice.plan(80)
+        choice.observe(threads, steps, 10 * choice.average * steps)  # 10× slower: something started beside it
+        assert choice.next_probe <= threads_module.time.perf_counter() and choice.interval == PROBE_SECONDS
+
+
+def test_fixed_counts_and_serial_builds_never_probe(monkeypatch):
+    with ThreadChoice(1, parallel=True) as choice:
+        assert not choice.adaptive and choice.plan(80) == (1, 80) and numba.get_num_threads() == 1
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "2")
+    assert not ThreadChoice(None, parallel=True).adaptive  # the user fixed it
+    monkeypatch.delenv("NUMBA_NUM_THREADS")
+    assert ThreadChoice(None, parallel=False).most == 1
+
+
+def test_threads_above_what_numba_has_is_bad_input(tmp_path):
+    code, out, err = cli("run", ROOT_SCENES / "gish.toml", "-o", tmp_path / "g.h5", "--threads", "999")
+    assert code == 2 and "--threads: at most" in err and "(got 999)" in err, err
+    assert not (tmp_path / "g.h5").exists()
+
+
+@pytest.mark.slow
+def test_changing_the_thread_count_call_by_call_changes_no_bit(tmp_path, monkeypatch):
+    """The pile (120 blobs: the parallel build) with the count switched between 1 and 2 at every call,
+    against a run on one thread."""
+    if threads_module.available() < 2:
+        pytest.skip("numba has one thread here")
+    sc = load_scene(ROOT_SCENES / "pile.toml")
+    from blobcli.scene.schema import with_overrides
+    sc = with_overrides(sc, steps=90)
+    assert simulate(sc, tmp_path / "one.h5", threads=1).status == "complete"
+    flips = iter(range(10**6))
+    real_plan = ThreadChoice.plan
+
+    def flipping_plan(self, steps):
+        threads, steps = real_plan(self, steps)
+        threads = 1 + next(flips) % 2
+        numba.set_num_threads(threads)
+        return threads, max(1, steps // 4)
+    monkeypatch.setattr(ThreadChoice, "plan", flipping_plan)
+    assert simulate(sc, tmp_path / "flip.h5").status == "complete"
+    assert next(flips) > 10
+    assert compare_files(tmp_path / "one.h5", tmp_path / "flip.h5").same
+    assert read_trajectory(tmp_path / "flip.h5").complete
