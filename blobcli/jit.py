@@ -17,6 +17,8 @@ inline_kernel = numba.njit(inline="always", **FLAGS)
 
 _STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, its Python function)
 _BUILDS: dict[tuple, object] = {}  # (id(serial build), parallel, bound configuration) -> that build
+_ASKED: dict[tuple, object] = {}  # (id(serial build), parallel, whole configuration) -> its build: the step asks
+#                                   once per compiled call, and finding what a kernel reads walks its callees
 
 
 def stage_kernel(fn):
@@ -68,10 +70,14 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
     overwrite each other's cache: numba issue #6845). Built on first use, when every module it
     names is loaded; compiled on its first call (or loaded from the disk cache)."""
     config = config or {}
+    asked = (id(serial), is_parallel, tuple(sorted(config.items())))
+    if asked in _ASKED:
+        return _ASKED[asked]
     _, fn = _STAGES[id(serial)]
     bound = tuple(sorted((name, config[name]) for name in _reads(fn, config)))
     parallel = is_parallel and _has_prange(fn)
     if not bound and not parallel:
+        _ASKED[asked] = serial
         return serial
     key = (id(serial), parallel, bound)
     twin = _BUILDS.get(key)
@@ -88,6 +94,7 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
         for name in fn.__code__.co_names:  # after registering the twin: a module's kernels name each other
             if id(scope.get(name)) in _STAGES:
                 scope[name] = build(scope[name], is_parallel, config)
+    _ASKED[asked] = twin
     return twin
 
 

@@ -4,11 +4,20 @@ crafted). Short in CI; run long by hand with, e.g.
     BLOBSIM_FUZZ_EXAMPLES=2000 pytest tests/test_fuzz.py
 
 The contract they check: exit 0, 1 or 2 only; never a traceback or an internal error; nothing
-written for a refused scene."""
+written for a refused scene; nothing written through a symlink, and no device or FIFO replaced,
+among the output places they try (a new file, a symlink, a FIFO, a device node, a directory,
+/proc). A third sends SIGINT or SIGTERM in the first 0.2 s of a run."""
 
 import math
 import os
+import shutil
+import signal
+import stat
 import string
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -166,9 +175,61 @@ def test_file_fuzzer_every_reader_exits_0_1_2_never_a_traceback(tmp_path_factory
                 del f.attrs[key]
                 if seed % 3 == 0:
                     f.attrs[key] = "nonsense"
+    place = output_place(d, ["new", "symlink", "fifo", "device", "directory", "proc"][seed % 6])
     for args in (("compare", bad, good, "--allow-incomplete"), ("compare", good, bad),
                  ("replay", bad, "-o", d / "r.rrd"), ("render", bad, "-o", d / "r.png"),
                  ("run", scene, "--resume", bad, "--steps", "60", "-o", d / "resumed.h5", "-q"),
-                 ("view", bad)):
+                 ("view", bad), ("replay", good, "-o", place), ("render", good, "-o", place),
+                 ("export", good, "--format", "xyz", "-o", place)):
         code, out, err = cli(*args)
         assert code in (0, 1, 2) and "Traceback" not in err and "internal error" not in err, (args, err)
+    untouched(d)
+
+
+PRECIOUS = "precious: no command was asked to write this"
+
+
+def output_place(d, kind: str):
+    """An output path of the given kind: a new file, a symlink to a precious file, a FIFO, a device
+    node (as root; else a FIFO), a directory, or a place under /proc."""
+    (d / "precious.txt").write_text(PRECIOUS)
+    place = d / "place.png"  # .png: render keeps the name as given
+    if kind == "symlink":
+        place.symlink_to(d / "precious.txt")
+    elif kind == "fifo" or (kind == "device" and os.geteuid() != 0):
+        os.mkfifo(place)
+    elif kind == "device":
+        os.mknod(place, stat.S_IFCHR | 0o600, os.makedev(1, 3))
+    elif kind == "directory":
+        place.mkdir()
+    elif kind == "proc":
+        place = Path("/proc/blobsim-fuzz.png")
+    return place
+
+
+def untouched(d):
+    """No command wrote through a link or replaced a special file."""
+    assert (d / "precious.txt").read_text() == PRECIOUS
+    place = d / "place.png"
+    if place.exists() or place.is_symlink():
+        mode = os.lstat(place).st_mode
+        assert stat.S_ISREG(mode) or stat.S_ISDIR(mode) or stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True)
+@given(delay=st.floats(0.1, 0.2), signum=st.sampled_from([signal.SIGINT, signal.SIGTERM]))
+def test_a_signal_in_the_first_fifth_of_a_second_exits_0_or_130_never_a_traceback(tmp_path_factory, delay, signum):
+    """The installed command, signalled while it starts (imports, scene, compile or load of the step).
+    Before about 0.03 s (longer on a loaded machine) Python itself has not yet run any of blobsim's code
+    (docs/cli.md), so the fuzzer starts at 0.1 s."""
+    from test_outputs import ONE
+    d = tmp_path_factory.mktemp("early")
+    (d / "s.toml").write_text(ONE)
+    script = shutil.which("blobsim", path=str(Path(sys.executable).parent))
+    proc = subprocess.Popen([script, "run", d / "s.toml", "-o", d / "o.h5", "-q"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode in (0, 130) and "Traceback" not in err, (delay, signum, proc.returncode, err)
+    assert not (d / "o.h5.partial").exists() and not (d / "o.h5.lock").exists()

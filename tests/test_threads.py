@@ -15,9 +15,11 @@ from blobcli.tools.compare import compare_files
 ROOT_SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
-def auto_choice(monkeypatch, most=2):
+def auto_choice(monkeypatch, most=2, free=None):
+    """An auto choice on `most` threads; `free`: the free cores it sees (None: it cannot see the load)."""
     monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
     monkeypatch.setattr(threads_module, "available", lambda: most)
+    monkeypatch.setattr(threads_module, "free_cores", lambda: free)
     return ThreadChoice(None, parallel=True)
 
 
@@ -91,3 +93,27 @@ def test_changing_the_thread_count_call_by_call_changes_no_bit(tmp_path, monkeyp
     assert next(flips) > 10
     assert compare_files(tmp_path / "one.h5", tmp_path / "flip.h5").same
     assert read_trajectory(tmp_path / "flip.h5").complete
+
+
+def test_threads_that_do_not_get_their_cores_fall_back_to_one_at_once(monkeypatch):
+    with auto_choice(monkeypatch) as choice:
+        choice.next_probe = float("inf")
+        threads, steps = choice.plan(80)
+        choice.observe(threads, steps, 0.05, cpu_seconds=2 * 0.05 * 0.99)  # both on their cores: stays
+        assert choice.current == 2
+        choice.observe(threads, steps, 0.05, cpu_seconds=0.05 * 1.48)  # beside a busy process: one thread
+        assert choice.current == 1 and choice.switches == 1
+
+
+def test_with_the_load_in_view_it_probes_only_what_can_win(monkeypatch):
+    with auto_choice(monkeypatch, free=1) as choice:  # another process runs on the second core
+        assert choice.current == 1
+        choice.next_probe = 0.0
+        assert choice.plan(80) == (1, 80) and choice.interval == 2 * PROBE_SECONDS  # no probe: asks again later
+        monkeypatch.setattr(threads_module, "free_cores", lambda: 2)  # the core is free again
+        choice.next_probe = 0.0
+        assert choice.plan(80) == (2, 10)  # a probe of both threads
+    with auto_choice(monkeypatch, free=2) as choice:  # alone: all threads, and no probe of one
+        assert choice.current == 2
+        choice.next_probe = 0.0
+        assert choice.plan(80) == (2, 80)

@@ -156,10 +156,10 @@ def _run_chosen(scene, path, progress, resume, announce, model, state, params, c
         chunk = 1  # steps per compiled call: grown to about CALL_SECONDS of wall time
         while done < params.steps and interrupts.pending() is None:
             threads, count = choice.plan(min(chunk, params.steps - done, params.every - done % params.every))
-            t0 = time.perf_counter()
+            t0, cpu0 = time.perf_counter(), time.process_time()
             ran = advance(state, model, params, count, step_settings=step_settings)
             elapsed = time.perf_counter() - t0
-            choice.observe(threads, ran, elapsed)
+            choice.observe(threads, ran, elapsed, time.process_time() - cpu0)
             done += ran
             if ran < count:
                 bad = first_runaway(state.position, RUNAWAY)

@@ -7,12 +7,21 @@ threads is descheduled for a time slice at some barrier and the other waits it o
 step's regions: two 60-blob runs started together took 4.8, 8.1 and 49 s each against 2.0 s alone
 (dev machine, 2026-11-25). One thread has no barrier to wait at.
 
-So an auto run (no --threads, no NUMBA_NUM_THREADS) watches its own speed: now and then it runs one
-short call on the other thread count (all of numba's threads, or one), and whichever gave the
-faster step runs until the next probe. While probes keep losing they come less often (the interval
-doubles, up to PROBE_MAX_SECONDS); a step that suddenly slows (something started beside the run)
-brings the next probe forward. The thread count never changes a bit of the result (jit.stage_kernel:
-a prange iteration writes only its own slots), only the speed.
+So an auto run (no --threads, no NUMBA_NUM_THREADS) watches its threads and its speed:
+- after each call on several threads it compares the process's CPU time with the wall time: threads
+  that get their cores use one core each (waiting threads spin), 1.99 cores for two threads on the
+  idle machine; beside a busy-loop process, 1.48. Below CPU_SHARE of a core per thread, the run
+  falls back to one thread at once;
+- now and then it runs one short call on the other thread count (all of numba's threads, or one),
+  and whichever gave the faster step runs until the next probe. While probes keep losing they come
+  less often (the interval doubles, up to PROBE_MAX_SECONDS); a step that suddenly slows brings the
+  next probe forward;
+- where it can see the machine's load (Linux: /proc/loadavg's count of running tasks) it probes
+  only what can win: one thread while other processes run on the cores its threads need, more
+  threads once those cores are free again. So it starts on one thread beside a busy process (a
+  2-thread step there took 3.4× a 1-thread one), and alone it never pays for a probe.
+The thread count never changes a bit of the result (jit.stage_kernel: a prange iteration writes only
+its own slots), only the speed.
 """
 
 from __future__ import annotations
@@ -30,11 +39,25 @@ PROBE_SHARE = 0.125  # a probe runs this share of the steps of a normal call (at
 SWITCH = 0.9  # the other count takes over when its step takes less than this × the current one's
 SLOWDOWN = 2.5  # a call this many times slower per step than the current count's average probes at once
 AVERAGE = 0.3  # weight of the newest call in the current count's average seconds per step
+CPU_SHARE = 0.85  # cores per thread below which a call's threads were not getting their cores ...
+SHARE_SECONDS = 0.01  # ... judged on calls at least this long
 
 
 def available() -> int:
     """The threads numba's pool has (NUMBA_NUM_THREADS, default: the cores)."""
     return numba.config.NUMBA_NUM_THREADS
+
+
+def free_cores() -> int | None:
+    """Cores that no other runnable task wants at this moment (Linux: the running count of
+    /proc/loadavg, less this thread), or None where that cannot be read."""
+    try:
+        with open("/proc/loadavg") as f:
+            running = int(f.read().split()[3].split("/")[0])
+        cores = len(os.sched_getaffinity(0))
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+    return cores - max(running - 1, 0)
 
 
 def fixed_by_environment() -> bool:
@@ -51,7 +74,7 @@ class ThreadChoice:
         most = threads or available()
         self.adaptive = threads is None and parallel and most > 1 and not fixed_by_environment()
         self.most = most if parallel else 1
-        self.current = self.most
+        self.current = 1 if self.adaptive and self._crowded() else self.most
         self.average = math.inf  # seconds per step at the current count
         self.interval = PROBE_SECONDS
         self.next_probe = time.perf_counter() + FIRST_PROBE_SECONDS
@@ -65,27 +88,48 @@ class ThreadChoice:
     def __exit__(self, *exc):
         numba.set_num_threads(self._before)  # the calling thread's count, as it was (tests run many runs)
 
+    def _crowded(self) -> bool | None:
+        """Whether other processes are running on the cores that more threads would need (None:
+        cannot tell here)."""
+        free = free_cores()
+        return None if free is None else free < self.most
+
     def plan(self, steps: int) -> tuple[int, int]:
         """(threads, steps) for the next call, which would run `steps` steps: a probe is shorter."""
-        if self.adaptive and time.perf_counter() >= self.next_probe:
-            threads, steps = (1 if self.current > 1 else self.most), max(1, int(steps * PROBE_SHARE))
-        else:
-            threads = self.current
+        threads = self.current
+        now = time.perf_counter()
+        if self.adaptive and now >= self.next_probe:
+            crowded = self._crowded()
+            if crowded is None or crowded == (self.current > 1):  # worth a probe of the other count
+                threads, steps = (1 if self.current > 1 else self.most), max(1, int(steps * PROBE_SHARE))
+            elif self.current == 1:  # no core for more threads: ask again later
+                self.interval = min(2.0 * self.interval, PROBE_MAX_SECONDS)
+                self.next_probe = now + self.interval
+            else:  # on all threads and the cores are free: nothing to learn from one thread
+                self.next_probe = now + PROBE_SECONDS
         numba.set_num_threads(threads)
         return threads, steps
 
-    def observe(self, threads: int, steps: int, seconds: float) -> None:
-        """A call on `threads` threads ran `steps` steps in `seconds` of wall time."""
+    def observe(self, threads: int, steps: int, seconds: float, cpu_seconds: float | None = None) -> None:
+        """A call on `threads` threads ran `steps` steps in `seconds` of wall time, using `cpu_seconds`
+        of the process's CPU time (all its threads)."""
         if not self.adaptive or steps <= 0:
             return
         per_step = seconds / steps
         now = time.perf_counter()
+        # (not judged on a probe: a short call's share is mostly the other threads waking up)
+        starved = (threads > 1 and cpu_seconds is not None and seconds >= SHARE_SECONDS
+                   and cpu_seconds < CPU_SHARE * threads * seconds)
         if threads != self.current:  # a probe
             if per_step < SWITCH * self.average:
                 self.current, self.average, self.interval = threads, per_step, PROBE_SECONDS
                 self.switches += 1
             else:
                 self.interval = min(2.0 * self.interval, PROBE_MAX_SECONDS)
+            self.next_probe = now + self.interval
+        elif starved:  # something else has our cores: one thread now, and a probe later
+            self.current, self.average = 1, math.inf
+            self.switches += 1
             self.next_probe = now + self.interval
         elif math.isinf(self.average):
             self.average = per_step
