@@ -184,3 +184,33 @@ def test_questionable_duplicate_sweep_axes_and_sleep_bounds_are_refused(tmp_path
         (tmp_path / "s.toml").write_text(ONE.replace("[scene]", f"[scene]\n{line}"))
         code, _, err = cli("check", tmp_path / "s.toml")
         assert code == 2 and message in err, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum, group", [(signal.SIGINT, True), (signal.SIGTERM, False)])
+def test_4_7_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(tmp_path, signum, group):
+    """The most workers --workers accepts, signalled while the points run: Ctrl-C as a terminal sends
+    it (to the whole process group), SIGTERM as `kill PID` does: exit 130 within 5 s, only blobsim's
+    lines on stderr (no worker's traceback, no leaked-semaphore warning), the summary written, the
+    points resumable."""
+    from blobcli.tools.executor import MAX_WORKERS_PER_CORE, default_workers
+    (tmp_path / "one.toml").write_text(ONE.replace("steps = 20", "steps = 100000"))
+    (tmp_path / "od.toml").write_text(SWEEP.replace("[0.2, 0.4]", "[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8]"))
+    most = MAX_WORKERS_PER_CORE * default_workers()
+    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "sweep", tmp_path / "od.toml", "-o", tmp_path / "o",
+                             "--workers", str(most)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    out = tmp_path / "o" / "od"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list(out.glob("point-*.h5.partial")):  # the points are running
+        time.sleep(0.05)
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    os.killpg(proc.pid, signum) if group else proc.send_signal(signum)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert time.monotonic() - t0 < 5.0
+    assert proc.returncode == 130, stderr
+    assert [line.split(":")[0] for line in stderr.splitlines()] == ["blobsim"], stderr
+    assert "interrupted; summary" in stdout and (out / "summary.csv").is_file()
+    assert "resume" in {__import__("blobcli.tools.sweep", fromlist=["x"]).point_state(
+        out / f"point-{k:04d}.h5", (out / f"point-{k:04d}.toml").read_text()) for k in range(8)}

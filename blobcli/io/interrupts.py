@@ -68,6 +68,13 @@ def caused_by_signal(error: BaseException) -> bool:
     return False
 
 
+def request_stop(signum: int = signal.SIGINT) -> None:
+    """Ask a run in this process to stop as for a signal (a sweep's worker, told by the sweep that
+    was interrupted: signals do not reach its task thread)."""
+    global _pending
+    _pending = signum
+
+
 def pending() -> int | None:
     """The signal that arrived in a deferred section, if any (it stays pending until cleared)."""
     return _pending

@@ -16,6 +16,7 @@ from typing import Callable, Iterator
 RETRIES = 2  # a task whose worker died (killed, out of memory) is run again elsewhere this often
 MAX_WORKERS_PER_CORE = 4  # --workers at most this many local worker processes per core
 CONNECT_SECONDS = 10  # a scheduler that does not answer within this is an error
+CLOSE_SECONDS = 3  # a local cluster's workers get this long to stop in order (a Ctrl-C: within 5 s in all)
 
 
 class SchedulerError(Exception):
@@ -27,9 +28,12 @@ def default_workers() -> int:
 
 
 def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, workers: int | None = None,
-              progress: bool = False, label: str = "runs") -> Iterator[tuple[int, object]]:
+              progress: bool = False, label: str = "runs",
+              stop: Callable | None = None) -> Iterator[tuple[int, object]]:
     """Yield (index, fn(*tasks[index])) as each task finishes, in any order. A task that raises
-    is re-raised here. Closing the generator (or Ctrl-C) cancels the tasks not yet finished."""
+    is re-raised here. Closing the generator (or Ctrl-C) cancels the tasks not yet started; on Dask,
+    `stop` is then run on every worker (a running task should see it and return soon: a run stops at
+    its next step boundary, its file whole and resumable) and they get CLOSE_SECONDS to do so."""
     if not tasks:
         return
     if workers == 0 and scheduler is None:
@@ -44,10 +48,10 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
     from distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
-        # Workers fork from a server that has imported the simulator once, instead of each
-        # importing numba and loading the kernel cache from scratch (spawn).
-        import multiprocessing
-        multiprocessing.set_forkserver_preload(["blobcli.io.run", "blobcli.tools.sweep"])
+        # Workers fork from a server that has imported Dask's own packages (numpy among them) once,
+        # instead of each starting from scratch (spawn). distributed sets that server's preload list
+        # itself (utils.get_mp_context), so blobsim's modules are not on it: each worker imports them.
+        # quiet_worker: the workers leave SIGINT to this process, which stops them in order.
         dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
         n = workers or default_workers()
         # One single-threaded worker process per core, and numba's threads split between them,
@@ -55,7 +59,8 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
         threads = str(max(1, default_workers() // n))
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                                host="127.0.0.1", silence_logs=40,
-                               env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"})
+                               env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"},
+                               preload=["blobcli.tools.quiet_worker"])
     try:
         client = Client(cluster if cluster is not None else scheduler, timeout=f"{CONNECT_SECONDS}s")
     except (OSError, TimeoutError, ValueError) as e:
@@ -78,11 +83,22 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
             yield i, result
     finally:
         bar.close()
+        unfinished = [f for f in futures if not f.done()]
+        for future in unfinished:
+            if future.status == "pending":
+                future.cancel()
+        if unfinished and stop is not None:
+            from distributed import wait
+            try:
+                client.run(stop)
+                wait(unfinished, timeout=CLOSE_SECONDS)
+            except Exception:  # noqa: BLE001 - stopping is best effort: the cluster is closed next anyway
+                pass
         for future in futures:
             future.cancel()
         client.close()
         if cluster is not None:
-            cluster.close()
+            cluster.close(timeout=CLOSE_SECONDS)
 
 
 class _NoBar:

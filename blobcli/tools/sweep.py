@@ -22,6 +22,7 @@ import csv
 import difflib
 import itertools
 import re
+import threading
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -216,7 +217,7 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
     loop; points a worker finished but had not yet reported are read back from their files.
     On this machine (no scheduler), the step is compiled here first, once per configuration
     (`compiling`: io.notice.announcer, entered around each compile), not once in each worker."""
-    from ..io.interrupts import Interrupted, pending
+    from ..io.interrupts import caused_by_signal, pending, request_stop
     from ..io.outputs import holds_text, write_text
     from .executor import run_tasks
     out.mkdir(parents=True, exist_ok=True)
@@ -232,13 +233,16 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
             tasks.append((str(toml), str(h5), state == "resume"))
             index.append(k)
     announce(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}")
-    if tasks and scheduler is None:
-        from ..io.run import compile_scenes
-        compile_scenes([load_scene(toml) for toml, _, _ in tasks], compiling)
     try:
-        for i, row in run_tasks(run_point, tasks, scheduler, workers, progress=progress, label="points"):
+        if tasks and scheduler is None:
+            from ..io.run import compile_scenes
+            compile_scenes([load_scene(toml) for toml, _, _ in tasks], compiling)
+        for i, row in run_tasks(run_point, tasks, scheduler, workers, progress=progress, label="points",
+                                stop=request_stop):
             rows[index[i]] = row
-    except (KeyboardInterrupt, Interrupted):
+    except (KeyboardInterrupt, Exception) as e:
+        if not caused_by_signal(e):  # (Dask wraps one raised inside its event loop)
+            raise
         for k in set(range(len(sweep.points))) - set(rows):
             h5 = out / f"point-{k:04d}.h5"
             if point_state(h5, sweep.texts[k]) == "done":
@@ -249,6 +253,9 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
 
 def run_point(point_toml: str, h5: str, resume: bool) -> dict:
     """Run one point (on a worker): its summary row, with status ok / failed: reason."""
+    from ..io import interrupts
+    if threading.current_thread() is not threading.main_thread():
+        interrupts.clear()  # a Dask worker: a stop the sweep asked of an earlier task is not for this one
     from ..io.h5md import TrajectoryError
     from ..io.outputs import OutputError
     from ..io.run import simulate
