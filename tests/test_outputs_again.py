@@ -214,3 +214,28 @@ def test_4_7_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(t
     assert "interrupted; summary" in stdout and (out / "summary.csv").is_file()
     assert "resume" in {__import__("blobcli.tools.sweep", fromlist=["x"]).point_state(
         out / f"point-{k:04d}.h5", (out / f"point-{k:04d}.toml").read_text()) for k in range(8)}
+
+
+@pytest.mark.slow
+def test_9_a_scene_at_the_step_bound_is_interrupted_within_2_s(tmp_path):
+    """substeps × iterations × vertices at MAX_STEP_WORK (a 4,000-vertex blob at 100 × 50): `check`
+    accepts it, and a Ctrl-C in mid-run is honoured within 2 s."""
+    from blobcli.scene.schema import MAX_STEP_WORK
+    text = ONE.replace("steps = 20", "steps = 1000\nsubsteps = 100\niterations = 50").replace(
+        "radius = 0.5", "radius = 0.5\nvertices = 4000")
+    assert 100 * 50 * 4000 == MAX_STEP_WORK
+    (tmp_path / "bound.toml").write_text(text)
+    assert cli("check", tmp_path / "bound.toml")[0] == 0
+    out = tmp_path / "bound.h5"
+    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", tmp_path / "bound.toml", "-o", out, "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = Path(str(out) + ".partial")
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and not (partial.exists() and partial.stat().st_size > 0):
+        time.sleep(0.05)
+    time.sleep(2.0)  # in mid-run: steps of about 0.7 s each
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert time.monotonic() - t0 < 2.0, stderr
+    assert proc.returncode == 130 and "interrupted" in stdout, stderr
