@@ -166,7 +166,7 @@ def test_a_blob_is_still_while_it_goes_nowhere_on_average():
         vel[0, n:2 * n] = 0.8 * sleep_speed
         vel[0, 2 * n:] = 1.2 * sleep_speed
         pos += vel * dt * awake.repeat(n)
-        update_sleep(pos, pos.copy(), vel, offsets, np.zeros((0, 2), np.int64), np.zeros(3 * n),
+        update_sleep(pos, pos.copy(), vel, offsets, np.zeros((0, 2), np.int64), np.zeros(3 * n), np.zeros((4, 3 * n)),
                      np.full((2, 3 * n), -1, np.int64), awake, still, still_center, still_angle, sleep_speed,
                      time_to_sleep, dt)
         for b in range(3):

@@ -30,6 +30,8 @@ MIN_DT = 1e-9  # s
 MIN_LENGTH = 1e-6  # m: radii, sizes and segment lengths; smaller shapes lose their area to round-off
 MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no blob may start there
 MAX_NAME = 100  # characters of a scene or blob name (the scene name becomes a file name)
+MAX_SURFACE_SPEED = 1000.0  # m/s: a conveyor surface's speed
+STATIC_MATERIAL_KEYS = ("friction", "static_friction", "restitution", "surface_velocity")  # any collider kind
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/sim/area.py
 
@@ -176,6 +178,10 @@ class StaticDef:
     static_friction: float = key(0.6, "", "static friction μ_s (combined as √(μ₁μ₂)); "
                                  "default: `friction` when only that is given, else 0.6", "float", nonnegative)
     restitution: float = key(0.0, "", "bounciness (combined with a blob's as the max)", "float", unit_interval)
+    surface_velocity: float = key(0.0, "m/s", "the surface moves along itself (a conveyor belt) without the "
+                                  "collider moving: friction drags blobs toward t = (n_y, -n_x), n the normal out "
+                                  "of the solid (a floor carries them toward +x, a circle's wall with blobs outside "
+                                  "turns clockwise)", "float", between(-MAX_SURFACE_SPEED, MAX_SURFACE_SPEED))
 
 
 TABLES = {"scene": SceneSettings, "output": OutputSettings, "blob": BlobDef, "static": StaticDef}
@@ -480,7 +486,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
                          + (f"; did you mean {hint[0]!r}?" if hint else ""), kind)
             continue
         geometry = COLLIDERS[kind].keys
-        allowed = ["kind", *geometry, "friction", "static_friction", "restitution"]
+        allowed = ["kind", *geometry, *STATIC_MATERIAL_KEYS]
         s = _table(StaticDef, rs, path, problems, allowed=allowed)
         if s is None:
             continue
@@ -603,7 +609,7 @@ def resolved_toml(scene: Scene) -> str:
         table("[[blob]]", b, keys)
     from ..colliders import COLLIDERS
     for st in scene.statics:
-        table("[[static]]", st, ["kind", *COLLIDERS[st.kind].keys, "friction", "static_friction", "restitution"])
+        table("[[static]]", st, ["kind", *COLLIDERS[st.kind].keys, *STATIC_MATERIAL_KEYS])
     return "\n".join(out).rstrip() + "\n"
 
 

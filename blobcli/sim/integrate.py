@@ -128,12 +128,20 @@ def update_velocities(pos, prev, offsets, awake, vel, contact_normal, contact_de
         nx, ny = contact_normal[0, i], contact_normal[1, i]
         vn = vel[0, i] * nx + vel[1, i] * ny
         vtx, vty = vel[0, i] - vn * nx, vel[1, i] - vn * ny
+        # relative to the surface, which moves at u along t = (n_y, -n_x) (a conveyor; statics.py)
+        u = contact_material[3, i]
+        if u != 0.0:
+            vtx -= u * ny
+            vty += u * nx
         # Kinetic friction: |Δv_t| <= μ_k |Δv_n|, with |Δv_n| = D / h.
         vt = math.sqrt(vtx * vtx + vty * vty)
         if vt > 0.0:
             s = max(vt - contact_material[1, i] * D * inv_h, 0.0) / vt
             vtx *= s
             vty *= s
+        if u != 0.0:
+            vtx += u * ny
+            vty -= u * nx
         # A vertex in contact does not keep approaching the surface (inelastic vertex;
         # the bounce is the blob's, see `restitution`).
         vn = max(vn, 0.0)

@@ -57,7 +57,7 @@ class StaticSet:
     kind: str  # the solver: "plane", "segment", "circle" or "polygon" (boxes are polygons)
     geom: np.ndarray  # (rows, 4) float64
     shape_offsets: np.ndarray  # (shapes + 1,) int64
-    material: np.ndarray  # (shapes, 3): static friction μ_s, kinetic μ_k, restitution e
+    material: np.ndarray  # (shapes, 4): static friction μ_s, kinetic μ_k, restitution e, surface velocity (m/s)
     aabb: np.ndarray  # (shapes, 4): xmin, ymin, xmax, ymax
 
 
@@ -111,7 +111,7 @@ class Model:
     def arrays(self) -> ModelArrays:
         """The model as the step's kernels read it."""
         kinds = {s.kind: (s.geom, s.shape_offsets, s.material, s.aabb) for s in self.statics}
-        none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+        none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 4)), np.zeros((0, 4)))
         return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.rest_perimeter,
                            self.target_area,
                            self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
@@ -164,7 +164,8 @@ class State(NamedTuple):
     lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
     contact_normal: np.ndarray  # (2, N) unit normal of the vertex's static contact
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
-    contact_material: np.ndarray  # (3, N) combined μ_s, μ_k, e of that contact
+    contact_material: np.ndarray  # (4, N) combined μ_s, μ_k, e of that contact, and its surface's velocity (m/s)
+    #                                 along t = (n_y, -n_x) (statics.py)
     perimeter_lam: np.ndarray  # (B,) the total-length constraints' multipliers this substep (perimeter.py)
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
@@ -271,7 +272,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   awake=np.ones(blobs, np.uint8), still=np.zeros(blobs),
                   still_center=np.zeros((blobs, 2)), still_angle=np.zeros(blobs),
                   previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
-                  contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((3, n)),
+                  contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((4, n)),
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
                   spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
@@ -309,7 +310,7 @@ def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
     for s in statics:
         kind = COLLIDERS[s.kind]
         geom, box = kind.rows(s)
-        rows[kind.solver].append((geom, (s.static_friction, s.friction, s.restitution), box))
+        rows[kind.solver].append((geom, (s.static_friction, s.friction, s.restitution, s.surface_velocity), box))
     out = []
     for kind in SOLVERS:
         if not rows[kind]:

@@ -158,7 +158,7 @@ def _advance(steps, state, model, settings, clock):
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.planes, m.segments,
-                                    m.circles, m.polygons, s.contact_normal, s.contact_depth, s.contact_material)
+                                    m.circles, m.polygons, s.contact_normal, s.contact_depth, s.contact_material, h)
                     t = _lap(clock, LAP_STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
@@ -180,8 +180,8 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, LAP_BLOB_RESTITUTION, t)
         if SLEEP:  # islands of blobs at rest fall asleep, islands with a mover wake
             awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
-                                       s.c_edge, s.awake, s.still, s.still_center, s.still_angle, c.sleep_speed,
-                                       c.time_to_sleep, c.dt)
+                                       s.contact_material, s.c_edge, s.awake, s.still, s.still_center,
+                                       s.still_angle, c.sleep_speed, c.time_to_sleep, c.dt)
             t = _lap(clock, LAP_SLEEP, t)
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:

@@ -38,8 +38,8 @@ from .ring import ring_means, ring_radius
 
 
 @kernel
-def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, still, still_center, still_angle,
-                 sleep_speed, time_to_sleep, dt):
+def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, contact_material, c_edge, awake, still, still_center,
+                 still_angle, sleep_speed, time_to_sleep, dt):
     """One step's sleep bookkeeping (module docstring). awake (B,) uint8, still (B,) s, still_center
     (B, 2) m and still_angle (B,) rad are updated in place; blobs falling asleep get v = 0, x_prev = x
     and no contacts. Returns how many blobs are awake."""
@@ -53,7 +53,8 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, s
         turn = angle - still_angle[b]
         turn -= 2.0 * math.pi * round(turn / (2.0 * math.pi))  # in [-π, π]
         moved2 = (cx - still_center[b, 0]) ** 2 + (cy - still_center[b, 1]) ** 2
-        if moved2 < reach * reach and abs(turn) * ring_radius(pos, o, e, cx, cy) < reach:
+        if (moved2 < reach * reach and abs(turn) * ring_radius(pos, o, e, cx, cy) < reach
+                and not _on_moving_surface(contact_depth, contact_material, o, e)):
             still[b] += dt
         else:  # it went somewhere: its still time begins again, from here
             _begin_still(b, cx, cy, angle, still, still_center, still_angle)
@@ -80,6 +81,16 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, c_edge, awake, s
                 c_edge[:, i] = -1
         awake[b] = keep_awake
     return np.count_nonzero(awake)
+
+
+@kernel
+def _on_moving_surface(contact_depth, contact_material, o, e):
+    """Whether a vertex of ring o..e touches a moving surface (a conveyor): such a blob is never at
+    rest, held in place against the belt or not, so its island never sleeps while it rides."""
+    for i in range(o, e):
+        if contact_depth[i] > 0.0 and contact_material[3, i] != 0.0:
+            return True
+    return False
 
 
 @kernel

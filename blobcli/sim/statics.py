@@ -11,7 +11,11 @@ thin wall. So the segment, circle and polygon stages are swept: they test the pa
 x_prev -> x of the substep, and a vertex whose path entered the shape is put back on
 the tangent line where it entered, not on the nearest (possibly far) side.
 
-Materials combine as Box2D does: μ = √(μ_blob μ_static), e = max(e_blob, e_static).
+Materials combine as Box2D does: μ = √(μ_blob μ_static), e = max(e_blob, e_static). A collider's
+`surface_velocity` u (a conveyor belt) moves its surface along t = (n_y, -n_x), n the normal out
+of the solid, without moving the collider: friction, static here and kinetic in the velocity
+update, acts on the slip relative to the surface, so a scene on a belt is the same scene on a fixed
+floor seen from a frame moving with the belt (Galilean invariance, tested).
 """
 
 import math
@@ -33,26 +37,33 @@ def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, con
     contact_material[0, i] = math.sqrt(blob_material[0] * shape_material[0])
     contact_material[1, i] = math.sqrt(blob_material[1] * shape_material[1])
     contact_material[2, i] = max(blob_material[2], shape_material[2])
+    contact_material[3, i] = shape_material[3]
 
 
 @inline_kernel
-def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material):
+def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h):
     """Where static friction holds the vertex: its slip along the surface this substep undone,
     if |Δx_t| <= μ_s D (Coulomb, at position level: Müller et al. 2020), D being how far the
-    surfaces pushed it out this substep. Returns (x, y) unchanged when it slides."""
+    surfaces pushed it out this substep. Returns (x, y) unchanged when it slides. On a moving
+    surface (a conveyor: speed u along t = (n_y, -n_x)) the slip is relative to it, Δx_t - u h t:
+    a held vertex moves with the belt."""
     nx, ny = contact_normal[0, i], contact_normal[1, i]
     dx, dy = x - prev[0, i], y - prev[1, i]
     dn = dx * nx + dy * ny
     tx, ty = dx - dn * nx, dy - dn * ny
+    u = contact_material[3, i]
+    if u != 0.0:  # (a branch, not u h t = 0 added: fixed surfaces keep their bits)
+        tx -= u * h * ny
+        ty += u * h * nx
     if tx * tx + ty * ty <= (contact_material[0, i] * contact_depth[i]) ** 2:
         return x - tx, y - ty
     return x, y
 
 
 @inline_kernel
-def _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material):
+def _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material, h):
     """_stuck, but only where that is outside the circle (a chord of a curved surface is not)."""
-    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material)
+    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
     if (sx - cx) ** 2 + (sy - cy) ** 2 >= r * r:
         return sx, sy
     return x, y
@@ -70,7 +81,7 @@ def _inside_shape(geom, start, stop, x, y):
 
 @stage_kernel
 def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                   contact_normal, contact_depth, contact_material):
+                   contact_normal, contact_depth, contact_material, h):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
@@ -83,12 +94,12 @@ def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, shape_offsets
                         contact_normal, contact_depth, contact_material)
                 # on the plane, and held there by static friction (it stays on a flat plane)
                 pos[0, i], pos[1, i] = _stuck(i, pos[0, i] - d * nx, pos[1, i] - d * ny, prev, contact_normal,
-                                              contact_depth, contact_material)
+                                              contact_depth, contact_material, h)
 
 
 @stage_kernel
 def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                     contact_normal, contact_depth, contact_material):
+                     contact_normal, contact_depth, contact_material, h):
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
@@ -124,13 +135,13 @@ def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, shape_offse
             _record(i, side * nx, side * ny, depth, blob_material[blob_of[i]], shape_material[s],
                     contact_normal, contact_depth, contact_material)
             x, y = _stuck(i, x + depth * side * nx, y + depth * side * ny, prev, contact_normal, contact_depth,
-                          contact_material)
+                          contact_material, h)
         pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
 def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                    contact_normal, contact_depth, contact_material):
+                    contact_normal, contact_depth, contact_material, h):
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
@@ -158,7 +169,7 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                         _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
                                 contact_normal, contact_depth, contact_material)
                         x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth,
-                                                     contact_material)
+                                                     contact_material, h)
                         continue
             rx, ry = x - cx, y - cy
             dist = math.sqrt(rx * rx + ry * ry)
@@ -170,13 +181,14 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                 x, y = cx + r * nx, cy + r * ny
                 _record(i, nx, ny, r - dist, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
-                x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material)
+                x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material,
+                                             h)
         pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
 def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                     contact_normal, contact_depth, contact_material):
+                     contact_normal, contact_depth, contact_material, h):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
@@ -234,7 +246,7 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offse
                             contact_normal, contact_depth, contact_material)
             if best >= 0 or inside:
                 # Static friction, unless holding the vertex would put it inside (reflex corners).
-                sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material)
+                sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
                 if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
                     x, y = sx, sy
         pos[0, i], pos[1, i] = x, y
@@ -250,18 +262,18 @@ PLANES = SEGMENTS = CIRCLES = POLYGONS = True
 
 @stage_kernel
 def collide_statics(pos, prev, blob_of, awake, blob_material, planes, segments, circles, polygons,
-                    contact_normal, contact_depth, contact_material):
+                    contact_normal, contact_depth, contact_material, h):
     """Push vertices out of every static collider: one kernel per solver kind present. Each kind
     comes as its rows (geom, shape_offsets, material, aabb: model.StaticSet), empty if absent."""
     if PLANES:
         _collide_plane(pos, prev, blob_of, awake, blob_material, *planes, contact_normal, contact_depth,
-                       contact_material)
+                       contact_material, h)
     if SEGMENTS:
         _collide_segment(pos, prev, blob_of, awake, blob_material, *segments, contact_normal, contact_depth,
-                         contact_material)
+                         contact_material, h)
     if CIRCLES:
         _collide_circle(pos, prev, blob_of, awake, blob_material, *circles, contact_normal, contact_depth,
-                        contact_material)
+                        contact_material, h)
     if POLYGONS:
         _collide_polygon(pos, prev, blob_of, awake, blob_material, *polygons, contact_normal, contact_depth,
-                         contact_material)
+                         contact_material, h)
