@@ -7,8 +7,9 @@ outline) and the stress detectors (the depth). The solver kernels themselves liv
 `blobcli.sim.statics`, one per `solver` name, all with one signature, run by its `collide_statics`.
 
 Kernel rows, 4 float64 each: plane (px, py, nx, ny) with unit n out of the solid side;
-circle (cx, cy, r, 0); segment and polygon edge (ax, ay, bx, by). Polygons (boxes too) are
-counter-clockwise, so an edge's outward normal is its right-hand side.
+circle (cx, cy, r, inside: 1 for a container, solid outside the circle, else 0); segment and
+polygon edge (ax, ay, bx, by). Polygons (boxes too) are counter-clockwise, so an edge's outward
+normal is its right-hand side.
 """
 
 from __future__ import annotations
@@ -67,6 +68,8 @@ def _segment_rows(s):
 
 def _circle_rows(s):
     r = s.radius
+    if s.inside:  # a container: solid everywhere outside, so its bounding box is the whole plane
+        return np.array([[*s.center, r, 1.0]]), [-np.inf, -np.inf, np.inf, np.inf]
     return np.array([[*s.center, r, 0.0]]), [s.center[0] - r, s.center[1] - r, s.center[0] + r, s.center[1] + r]
 
 
@@ -76,7 +79,8 @@ def _circle_outline(s, extent):
 
 
 def _circle_depth(points, s):
-    return np.maximum(s.radius - np.hypot(*(np.asarray(points) - s.center).T), 0.0)
+    out = np.hypot(*(np.asarray(points) - s.center).T) - s.radius  # > 0 outside the circle
+    return np.maximum(out if s.inside else -out, 0.0)
 
 
 def _polygon_rows(s):
@@ -95,7 +99,7 @@ COLLIDERS = {
                             lambda points, s: np.zeros(len(points))),
     "box": ColliderKind(("center", "size", "angle"), "polygon", _polygon_rows, _polygon_outline,
                         lambda points, s: depth_inside_polygon(points, polygon_outline(s))),
-    "circle": ColliderKind(("center", "radius"), "circle", _circle_rows, _circle_outline, _circle_depth),
+    "circle": ColliderKind(("center", "radius", "inside"), "circle", _circle_rows, _circle_outline, _circle_depth),
     "polygon": ColliderKind(("points",), "polygon", _polygon_rows, _polygon_outline,
                             lambda points, s: depth_inside_polygon(points, polygon_outline(s))),
 }

@@ -7,7 +7,10 @@ edge are inlined into their callers at the numba IR level (`inline_kernel`): lef
 calls, the perimeter sweep ran 7× slower.
 """
 
+import functools
+import hashlib
 import types
+from pathlib import Path
 
 import numba
 
@@ -61,13 +64,27 @@ def _has_prange(fn) -> bool:
     return "prange" in fn.__code__.co_names or any(_has_prange(_STAGES[id(c)][1]) for c in _callees(fn))
 
 
+@functools.cache
+def source_token() -> str:
+    """8 hex digits of a hash of the simulation's source (blobcli/sim, geometry, colliders, this file).
+    numba keys a cached kernel by its own file's stamp only, while a build links the code of the stages
+    it calls from other files: without this token in its name, a changed stage would leave the step's
+    cached build running the old one."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted([*root.glob("sim/*.py"), root / "geometry.py", root / "colliders.py", root / "jit.py"]):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:8]
+
+
 def build(serial, is_parallel: bool = False, config: dict | None = None):
     """The build of a stage kernel for one configuration (a dict of configuration names to bool or
     int values), serial or parallel: the serial build itself when the kernel reads none of those
     names and has no prange loop to run in parallel, else a renamed copy of its code compiled with
     them bound. The name says the bound values (numba's disk cache keys a kernel by its name and
     bytecode, not its globals or flags, so two builds of one function under one name would
-    overwrite each other's cache: numba issue #6845). Built on first use, when every module it
+    overwrite each other's cache: numba issue #6845) and the source it was built from
+    (`source_token`). Built on first use, when every module it
     names is loaded; compiled on its first call (or loaded from the disk cache)."""
     config = config or {}
     asked = (id(serial), is_parallel, tuple(sorted(config.items())))
@@ -84,7 +101,8 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
     if twin is None:
         scope = dict(fn.__globals__)
         scope.update(bound)
-        suffix = "".join(f"_{name.lower()}{int(value)}" for name, value in bound) + ("_parallel" if parallel else "")
+        suffix = ("".join(f"_{name.lower()}{int(value)}" for name, value in bound) + ("_parallel" if parallel else "")
+                  + f"_src{source_token()}")
         code = fn.__code__.replace(co_name=fn.__name__ + suffix, co_qualname=fn.__qualname__ + suffix)
         function = types.FunctionType(code, scope, code.co_name, fn.__defaults__, fn.__closure__)
         # parallel=True where the code has prange loops of its own; a stage that only calls others

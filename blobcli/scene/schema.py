@@ -172,6 +172,8 @@ class StaticDef:
     size: tuple | None = key(None, "m", "box: [width, height]", "vec2", lambda v: length(min(v)))
     angle: float = key(0.0, "deg", "box: rotation, counter-clockwise", "float")
     radius: float | None = key(None, "m", "circle: radius", "float", length)
+    inside: bool = key(False, "", "circle: true for a container (a drum): solid outside the circle, blobs inside",
+                       "bool")
     points: tuple | None = key(None, "m", "polygon: simple polygon, concave allowed, either winding, solid inside",
                                "points")
     friction: float = key(0.5, "", "kinetic friction μ_k (combined with a blob's as √(μ₁μ₂))", "float", nonnegative)
@@ -181,7 +183,8 @@ class StaticDef:
     surface_velocity: float = key(0.0, "m/s", "the surface moves along itself (a conveyor belt) without the "
                                   "collider moving: friction drags blobs toward t = (n_y, -n_x), n the normal out "
                                   "of the solid (a floor carries them toward +x, a circle's wall with blobs outside "
-                                  "turns clockwise)", "float", between(-MAX_SURFACE_SPEED, MAX_SURFACE_SPEED))
+                                  "turns clockwise, a drum's (inside = true) counter-clockwise: u = ω R)", "float",
+                                  between(-MAX_SURFACE_SPEED, MAX_SURFACE_SPEED))
 
 
 TABLES = {"scene": SceneSettings, "output": OutputSettings, "blob": BlobDef, "static": StaticDef}

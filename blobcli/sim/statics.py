@@ -151,6 +151,10 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                     or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
                 continue
             cx, cy, r = geom[s, 0], geom[s, 1], geom[s, 2]
+            if geom[s, 3] != 0.0:  # a container
+                x, y = _inside_circle(i, x, y, cx, cy, r, prev, blob_of, blob_material, shape_material[s],
+                                      contact_normal, contact_depth, contact_material, h)
+                continue
             fx, fy = x0 - cx, y0 - cy
             dx, dy = x - x0, y - y0
             # Swept: first t in [0, 1] with |x0 + t d - c| = r, for a path that began outside.
@@ -184,6 +188,29 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                 x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material,
                                              h)
         pos[0, i], pos[1, i] = x, y
+
+
+@inline_kernel
+def _inside_circle(i, x, y, cx, cy, r, prev, blob_of, blob_material, shape_material, contact_normal, contact_depth,
+                   contact_material, h):
+    """A circle with blobs inside, solid outside (a drum): a vertex beyond the radius goes back to the
+    nearest point of the circle, along the radius (no sweep needed: the solid has no far side to
+    tunnel to), with the inward normal. Static friction holds it on the wall: the held point, on the
+    tangent line, is brought back onto the circle along its radius. Returns the new (x, y)."""
+    rx, ry = x - cx, y - cy
+    dist = math.sqrt(rx * rx + ry * ry)
+    if dist <= r:
+        return x, y
+    nx, ny = -rx / dist, -ry / dist
+    x, y = cx + r * rx / dist, cy + r * ry / dist
+    _record(i, nx, ny, dist - r, blob_material[blob_of[i]], shape_material, contact_normal, contact_depth,
+            contact_material)
+    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
+    qx, qy = sx - cx, sy - cy
+    q = math.sqrt(qx * qx + qy * qy)
+    if q > r:
+        return cx + r * qx / q, cy + r * qy / q
+    return sx, sy
 
 
 @stage_kernel

@@ -18,7 +18,7 @@ def draw_statics(ax, statics, lo, hi):
     extent = 2.0 * float(np.max(hi - lo))
     for s in statics:
         line = COLLIDERS[s.kind].outline(s, extent)
-        if s.kind == "segment":  # zero thickness: a line, not a solid
+        if s.kind == "segment" or (s.kind == "circle" and s.inside):  # a line: no solid, or one all around
             ax.plot(line[:, 0], line[:, 1], color="0.3", lw=2, zorder=1)
             continue
         if s.kind == "plane":  # the solid half-plane: a big quad behind the line
