@@ -84,8 +84,8 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
     them bound. The name says the bound values (numba's disk cache keys a kernel by its name and
     bytecode, not its globals or flags, so two builds of one function under one name would
     overwrite each other's cache: numba issue #6845) and the source it was built from
-    (`source_token`). Built on first use, when every module it
-    names is loaded; compiled on its first call (or loaded from the disk cache)."""
+    (`source_token`). Built on first use, when every module it names is loaded; compiled on its
+    first call (or loaded from the disk cache)."""
     config = config or {}
     asked = (id(serial), is_parallel, tuple(sorted(config.items())))
     if asked in _ASKED:

@@ -9,6 +9,7 @@ Dask is imported only here, so `blobsim --help` and `blobsim run` never load it.
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 from typing import Callable, Iterator
@@ -58,7 +59,7 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
         # so workers × threads never exceeds the cores.
         threads = str(max(1, default_workers() // n))
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
-                               host="127.0.0.1", silence_logs=40,
+                               host="127.0.0.1", silence_logs=logging.CRITICAL,  # blobsim says what failed
                                env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"},
                                preload=["blobcli.tools.quiet_worker"])
     try:
