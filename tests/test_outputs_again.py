@@ -14,18 +14,8 @@ import h5py
 import numpy as np
 import pytest
 from conftest import cli
+from test_outputs import ONE  # one blob on a floor, 40 steps
 
-ONE = """[scene]
-steps = 20
-[[blob]]
-name = "solo"
-center = [0.0, 1.0]
-radius = 0.5
-[[static]]
-kind = "plane"
-point = [0.0, 0.0]
-normal = [0.0, 1.0]
-"""
 SWEEP = """[sweep]
 scene = "one.toml"
 [[sweep.axis]]
@@ -194,7 +184,7 @@ def test_4_7_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(t
     lines on stderr (no worker's traceback, no leaked-semaphore warning), the summary written, the
     points resumable."""
     from blobcli.tools.executor import MAX_WORKERS_PER_CORE, default_workers
-    (tmp_path / "one.toml").write_text(ONE.replace("steps = 20", "steps = 100000"))
+    (tmp_path / "one.toml").write_text(ONE.replace("steps = 40", "steps = 100000"))
     (tmp_path / "od.toml").write_text(SWEEP.replace("[0.2, 0.4]", "[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8]"))
     most = MAX_WORKERS_PER_CORE * default_workers()
     proc = subprocess.Popen([sys.executable, "-m", "blobcli", "sweep", tmp_path / "od.toml", "-o", tmp_path / "o",
@@ -221,7 +211,7 @@ def test_9_a_scene_at_the_step_bound_is_interrupted_within_2_s(tmp_path):
     """substeps × iterations × vertices at MAX_STEP_WORK (a 4,000-vertex blob at 100 × 50): `check`
     accepts it, and a Ctrl-C in mid-run is honoured within 2 s."""
     from blobcli.scene.schema import MAX_STEP_WORK
-    text = ONE.replace("steps = 20", "steps = 1000\nsubsteps = 100\niterations = 50").replace(
+    text = ONE.replace("steps = 40", "steps = 1000\nsubsteps = 100\niterations = 50").replace(
         "radius = 0.5", "radius = 0.5\nvertices = 4000")
     assert 100 * 50 * 4000 == MAX_STEP_WORK
     (tmp_path / "bound.toml").write_text(text)
