@@ -93,6 +93,23 @@ def _polygon_outline(s, extent):
     return np.vstack([pts, pts[:1]])
 
 
+def default_pivot(s) -> tuple[float, float]:
+    """The point a collider turns about and is recorded at, unless the scene gives `pivot`: a plane's
+    point, a segment's midpoint, a box's or circle's centre, a polygon's centroid."""
+    if s.pivot is not None:
+        return s.pivot
+    if s.kind == "plane":
+        return s.point
+    if s.kind == "segment":
+        return ((s.a[0] + s.b[0]) / 2, (s.a[1] + s.b[1]) / 2)
+    if s.kind in ("box", "circle"):
+        return s.center
+    p = polygon_outline(s)
+    q = np.roll(p, -1, axis=0)
+    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]  # centroid: Σ (p + q) (p × q) / (6 A)
+    return tuple(((p + q) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum()))
+
+
 COLLIDERS = {
     "plane": ColliderKind(("point", "normal"), "plane", _plane_rows, _plane_outline, _plane_depth),
     "segment": ColliderKind(("a", "b"), "segment", _segment_rows, lambda s, extent: np.array([s.a, s.b]),

@@ -25,13 +25,14 @@ import numpy as np
 from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 # Format 1 lacks /connectivity, particles/blobs/mass and the units module; formats 1 and 2 store impact_speed
 # in /restart; formats 1-3 have no sleeping (no /observables/awake: every blob was awake); formats 1-5 are not
-# resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5)).
-READS_FORMATS = (1, 2, 3, 4, 5, 6)
+# resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5));
+# formats 1-6 have no moving colliders (no /observables/statics, no /restart/static_pose: every collider at rest).
+READS_FORMATS = (1, 2, 3, 4, 5, 6, 7)
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 6, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 7, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
@@ -50,6 +51,12 @@ LAYOUT = """\
     area/{value,step,time}            value float64 [frames, blobs]  unit "m+2" (positive)
     kinetic_energy/{value,step,time}  value float64 [frames, blobs]  unit "J"
     awake/{value,step,time}           value uint8 [frames, blobs]: 1 awake, 0 asleep (frozen, not simulated)
+    statics/                          (scenes with colliders; one row per [[static]] table, in scene order)
+      position/{value,step,time}      value float64 [frames, statics, 2]  unit "m": its pivot, where it is now
+      angle/{value,step,time}         value float64 [frames, statics]  unit "deg": its turn since t = 0
+      force/{value,step,time}         value float64 [frames, statics, 2]  unit "N": the force the blobs exert
+                                      on it, their contact impulses over the frame's step / dt (0 at frame 0)
+      torque/{value,step,time}        value float64 [frames, statics]  unit "N m": their moment about its pivot
 /parameters
     blob_offsets             int64 [blobs + 1]: blob b owns vertices offsets[b]:offsets[b+1]
     blob_names               str   [blobs]
@@ -76,6 +83,9 @@ LAYOUT = """\
                              the other blob's edge it sticks to (by the edge's first vertex; -1: none) ...
     stick_t                  float64 [vertices, 2]: ... and where along that edge (0 at its first vertex, 1 at
                              the next)
+    static_pose              float64 [statics, 6]: each collider's pose: displacement dx, dy (m) and turn (rad)
+                             since the scene's pose, a loaded wall's s (m) and speed V (m/s) along its load
+                             direction, and s at the last substep's start (m) (format 7; absent before: at rest)
       attrs: step
 """
 # /restart's datasets of fixed shape, each a State field stored row by row: (dataset = State field,
@@ -85,13 +95,15 @@ LAYOUT = """\
 RESTART_FIELDS = (("position", "vertices", 2, "f"), ("velocity", "vertices", 2, "f"), ("impact", "blobs", 4, "f"),
                   ("awake", "blobs", None, "u"), ("still", "blobs", None, "f"), ("still_center", "blobs", 2, "f"),
                   ("still_angle", "blobs", None, "f"), ("stick_edge", "vertices", 2, "i"),
-                  ("stick_t", "vertices", 2, "f"))
+                  ("stick_t", "vertices", 2, "f"), ("static_pose", "statics", 6, "f"))
+SINCE_FORMAT = {"static_pose": 7}  # /restart datasets newer than format 6, the oldest resumable
 RESTART_DTYPES = {"f": np.float64, "i": np.int64, "u": np.uint8}
 _PER_VERTEX = {name for name, rows, *_ in RESTART_FIELDS if rows == "vertices"}
 POSITION = "particles/blobs/position"
 AREA = "observables/area"
 KINETIC = "observables/kinetic_energy"
 AWAKE = "observables/awake"
+STATICS = "observables/statics"
 SERIES = (POSITION, AREA, KINETIC, AWAKE)
 PARAMETERS = "parameters"
 RESTART = "restart"
@@ -180,6 +192,18 @@ class TrajectoryWriter:
         self.area = _series(obs, "area", (b,), unit="m+2", chunk=self.block)
         self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
         self.awake = _series(obs, "awake", (b,), dtype=np.uint8, chunk=self.block)
+        S = self.statics = len(model.walls.motion)
+        self._pivot = model.walls.pivot
+        if S:
+            group = obs.create_group("statics")
+            self.static_series = {"position": _series(group, "position", (S, 2), unit="m", chunk=self.block),
+                                  "angle": _series(group, "angle", (S,), unit="deg", chunk=self.block),
+                                  "force": _series(group, "force", (S, 2), unit="N", chunk=self.block),
+                                  "torque": _series(group, "torque", (S,), unit="N m", chunk=self.block)}
+            self._statics = {"position": np.empty((self.block, S, 2)), "angle": np.empty((self.block, S)),
+                             "force": np.empty((self.block, S, 2)), "torque": np.empty((self.block, S))}
+        else:
+            self.static_series, self._statics = {}, {}
 
         p = f.create_group(PARAMETERS)
         p.create_dataset("blob_offsets", data=model.offsets)
@@ -201,13 +225,13 @@ class TrajectoryWriter:
         self._area = np.empty((self.block, b))
         self._kinetic = np.empty((self.block, b))
         self._awake = np.empty((self.block, b), np.uint8)
-        self._last = {name: np.empty(_restart_shape(rows, columns, n, b), RESTART_DTYPES[kinds])
+        self._last = {name: np.empty(_restart_shape(rows, columns, n, b, S), RESTART_DTYPES[kinds])
                       for name, rows, columns, kinds in RESTART_FIELDS
                       if name not in ("position", "awake")}  # those two: from the frame buffers
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
         self._count = 0
         self._last_flush = time.monotonic()
-        self._frame_bytes = 8 * (2 * n + 2 * b) + b + 16
+        self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
@@ -218,6 +242,12 @@ class TrajectoryWriter:
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
+        if self.statics:
+            st = self._statics
+            st["position"][k] = self._pivot + state.static_pose[:, :2]
+            st["angle"][k] = np.degrees(state.static_pose[:, 2])
+            st["force"][k] = state.static_impulse[:, :2] / self.dt if step > 0 else 0.0
+            st["torque"][k] = state.static_impulse[:, 2] / self.dt if step > 0 else 0.0
         for name, kept in self._last.items():
             kept[...] = restart_view(state, name)
         self._last_pairs = restart_pairs(state)
@@ -237,7 +267,8 @@ class TrajectoryWriter:
         steps = self._steps[:k]
         start, stop = self.frames, self.frames + k
         for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
-                              (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k])):
+                              (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k]),
+                              *((self.static_series[name], self._statics[name][:k]) for name in self._statics)):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
@@ -275,14 +306,23 @@ class TrajectoryWriter:
                     return None
                 stop = min(start + self.block, keep)
                 for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC),
-                                    (self.awake, AWAKE)):
+                                    (self.awake, AWAKE),
+                                    *((g, f"{STATICS}/{n}") for n, g in self.static_series.items())):
                     for key in ("value", "step", "time"):
                         ds = group[key]
                         ds.resize(self.frames + stop - start, axis=0)
-                        ds[self.frames:] = f[name][key][start:stop]
+                        if name in f:
+                            ds[self.frames:] = f[name][key][start:stop]
+                        elif key != "value":
+                            ds[self.frames:] = f[POSITION][key][start:stop]
+                        else:  # format 6 has no statics series: its colliders were fixed at their pivots (forces
+                            #    not recorded: written as 0)
+                            ds[self.frames:] = self._pivot if name.endswith("/position") else 0.0
                 self.frames += stop - start
             for name, *_ in RESTART_FIELDS:
-                restart_view(state, name)[...] = restart[name][...]
+                if name in restart:  # static_pose: format 7 on (resume_problems refuses a moving scene before)
+                    restart_view(state, name)[...] = restart[name][...]
+            state.steps_done[0] = step
             keys = restart["pair_key"][...]
             if len(keys) > len(state.pair_key):
                 raise TrajectoryError(f"{source}: {RESTART}/pair_key holds {len(keys)} blob pairs, more than this "
@@ -398,8 +438,9 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
                         "run it again")
     elif need_restart or RESTART in f and version >= 6:
         pairs = f[f"{RESTART}/pair_key"].shape[0] if f"{RESTART}/pair_key" in f else 0
-        problems += [_shape_problem(f, f"{RESTART}/{name}", _restart_shape(rows, columns, n, b), kinds)
-                     for name, rows, columns, kinds in RESTART_FIELDS]
+        statics = f[f"{RESTART}/static_pose"].shape[0] if f"{RESTART}/static_pose" in f else 0
+        problems += [_shape_problem(f, f"{RESTART}/{name}", _restart_shape(rows, columns, n, b, statics), kinds)
+                     for name, rows, columns, kinds in RESTART_FIELDS if version >= SINCE_FORMAT.get(name, 6)]
         problems += [_shape_problem(f, f"{RESTART}/pair_key", (pairs,), "iu"),
                      _shape_problem(f, f"{RESTART}/pair_impact", (pairs, 4))]
         if RESTART in f and "step" not in f[RESTART].attrs:
@@ -497,9 +538,9 @@ def restart_view(state, name):
     return field.T if name in _PER_VERTEX else field
 
 
-def _restart_shape(rows, columns, n, b) -> tuple:
-    """The shape of a RESTART_FIELDS dataset in a file of n vertices and b blobs."""
-    return (n if rows == "vertices" else b,) + (() if columns is None else (columns,))
+def _restart_shape(rows, columns, n, b, statics) -> tuple:
+    """The shape of a RESTART_FIELDS dataset in a file of n vertices, b blobs and that many colliders."""
+    return ({"vertices": n, "blobs": b, "statics": statics}[rows],) + (() if columns is None else (columns,))
 
 
 def restart_pairs(state):
@@ -537,6 +578,14 @@ def _resume_problems(f, path, scene, params) -> list[str]:
                 problems.append(f"{path}: was run with {key} = {was}, not {now}")
         complete = bool(f.attrs["complete"])
         last = int(p.attrs["steps"]) if complete else int(f[RESTART].attrs["step"])
+        version = int(np.asarray(f.attrs["blobsim_format"]).flat[0])
+        moving = [i for i, st in enumerate(scene.statics)
+                  if st.velocity is not None or st.angular_velocity is not None or st.path or st.load is not None]
+        if version < 7 and moving:
+            problems.append(f"{path}: blobsim format {version} keeps no collider poses; static[{moving[0]}] moves")
+        elif version >= 7 and f[f"{RESTART}/static_pose"].shape[0] != len(scene.statics):
+            problems.append(f"{path}: holds {f[f'{RESTART}/static_pose'].shape[0]} colliders, the scene "
+                            f"{len(scene.statics)}")
         if params.steps <= last:
             problems.append(f"{path}: the run {'is complete at' if complete else 'already reached'} step {last}; "
                             f"give more --steps (got {params.steps}) to extend it")
@@ -571,6 +620,7 @@ class Trajectory:
     complete: bool
     attrs: dict  # /parameters attrs
     scene: str
+    statics: dict  # /observables/statics: "position" (frames, S, 2), "angle", "force", "torque"; empty without
 
 
 def read_trajectory(path: str | Path) -> Trajectory:
@@ -583,4 +633,5 @@ def read_trajectory(path: str | Path) -> Trajectory:
                           area=f[AREA]["value"][...], kinetic_energy=f[KINETIC]["value"][...],
                           awake=f[AWAKE]["value"][...] if AWAKE in f else np.ones(f[AREA]["value"].shape, np.uint8),
                           target_area=p["target_area"][...], mass=p["mass"][...], complete=bool(f.attrs["complete"]),
-                          attrs=dict(p.attrs), scene=text(p["scene"][()]))
+                          attrs=dict(p.attrs), scene=text(p["scene"][()]),
+                          statics={name: g["value"][...] for name, g in f[STATICS].items()} if STATICS in f else {})

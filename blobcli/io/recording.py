@@ -5,7 +5,9 @@ Layout of a recording (timelines `step`, a sequence, and `sim_time`, a duration 
     world/blobs              LineStrips2D: one closed strip per blob, one stable colour per blob (grey while
                              it sleeps)
     world/vertices           Points2D: every vertex
-    world/statics/<i>        the static colliders, logged once as static data
+    world/statics/<i>        the colliders: logged once as static data, or, for one that moves, frame by frame
+                             where it is (its outline turned by its recorded angle about its recorded pivot)
+    series/statics/<i>/force Scalars: a loaded wall's force from the blobs along its load direction, N
     series/area_error        Scalars: one series per blob, (|A| - A_target) / A_target
     series/kinetic_energy    Scalars: one series per blob, J
     series/summary/area_error/{max,mean}   over the blobs
@@ -30,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..colliders import COLLIDERS
+from ..colliders import COLLIDERS, default_pivot
 from .outputs import replaced
 
 BATCH_FRAMES = 64  # frames per send_columns call
@@ -78,6 +80,11 @@ class RerunRecorder:
         pad = 0.1 * max(hi[0] - lo[0], hi[1] - lo[1], 1.0)
         lo, hi = lo - pad, hi + pad
         legend = rrb.PlotLegend(visible=len(self.offsets) - 1 <= LEGEND_BLOBS)
+        self.moving = [i for i, s in enumerate(scene.statics) if s.velocity is not None or s.path is not None
+                       or s.angular_velocity is not None or s.load is not None]
+        self.loaded = {i: np.array(s.load_direction) / np.hypot(*s.load_direction)
+                       for i, s in enumerate(scene.statics) if s.load is not None}
+        forces = [rrb.TimeSeriesView(origin="series/statics", name="force on loaded walls (N)")] if self.loaded else []
         blueprint = rrb.Blueprint(rrb.Horizontal(
             rrb.Spatial2DView(origin="world", name=scene.name,  # bounds in the flipped (drawn) frame
                               visual_bounds=rrb.VisualBounds2D(x_range=[lo[0], hi[0]], y_range=[-hi[1], -lo[1]])),
@@ -86,7 +93,7 @@ class RerunRecorder:
                          rrb.TimeSeriesView(origin="series/area_error", name="area error per blob",
                                             plot_legend=legend, visible=False),
                          rrb.TimeSeriesView(origin="series/kinetic_energy", name="kinetic energy per blob (J)",
-                                            plot_legend=legend, visible=False)),
+                                            plot_legend=legend, visible=False), *forces),
             column_shares=[3, 2]))
         import re
         import uuid
@@ -96,10 +103,16 @@ class RerunRecorder:
         for entity in ("world/blobs", "world/vertices", "world/statics"):
             self.rec.log(entity, rr.Transform3D(scale=Y_UP), static=True)
         extent = 2.0 * max(hi[0] - lo[0], hi[1] - lo[1])
+        self.outlines = {}  # of the colliders that move: outline relative to the pivot
         for i, s in enumerate(scene.statics):
             outline = COLLIDERS[s.kind].outline(s, extent)
+            if i in self.moving:
+                self.outlines[i] = outline - np.array(default_pivot(s))
+                continue
             self.rec.log(f"world/statics/{i}", rr.LineStrips2D([outline], colors=[[90, 90, 90, 255]],
                                                                 radii=[0.01]), static=True)
+        for i in self.loaded:
+            self.rec.log(f"series/statics/{i}/force", rr.SeriesLines(names=[f"static[{i}]"]), static=True)
         for series in ("area_error", "kinetic_energy"):
             self.rec.log(f"series/{series}", rr.SeriesLines(names=list(names), colors=self.colors), static=True)
         for path, color in (("area_error/max", [230, 90, 70]), ("area_error/mean", [90, 150, 230]),
@@ -107,11 +120,14 @@ class RerunRecorder:
             self.rec.log(f"series/summary/{path}", rr.SeriesLines(names=[path.split("/")[1]], colors=[color]),
                          static=True)
         self._steps, self._pos, self._area_error, self._kinetic, self._awake = [], [], [], [], []
+        self._statics = []
         self.frames = 0
 
-    def append(self, step: int, pos, area, kinetic, awake):
-        """Buffer one frame: positions (N, 2), signed or positive areas (B,), kinetic energy (B,), awake (B,)."""
+    def append(self, step: int, pos, area, kinetic, awake, statics=None):
+        """Buffer one frame: positions (N, 2), signed or positive areas (B,), kinetic energy (B,), awake (B,),
+        and the colliders' recorded (position (S, 2), angle (S,) deg, force (S, 2)), or None if none move."""
         self._steps.append(step)
+        self._statics.append(statics)
         self._awake.append(np.asarray(awake, dtype=bool))
         self._pos.append(np.asarray(pos, dtype=np.float32))
         self._area_error.append((np.abs(area) - self.target) / self.target)
@@ -142,8 +158,21 @@ class RerunRecorder:
                              ("area_error/mean", np.abs(area_error).mean(axis=1)),
                              ("kinetic_energy/total", kinetic.sum(axis=1))):
             self.rec.send_columns(f"series/summary/{path}", indexes=times, columns=rr.Scalars.columns(scalars=values))
+        recorded = self._statics[0] is not None  # (always, in a file of a scene whose colliders move)
+        for i in self.moving if recorded else ():  # where each moving collider is, frame by frame
+            strips = []
+            for position, angle, _ in self._statics:
+                c, t = np.cos(np.radians(angle[i])), np.sin(np.radians(angle[i]))
+                strips.append(self.outlines[i] @ np.array([[c, t], [-t, c]]) + position[i])
+            self.rec.send_columns(f"world/statics/{i}", indexes=times, columns=rr.LineStrips2D.columns(
+                strips=strips, colors=np.tile(np.uint8([90, 90, 90, 255]), (frames, 1)),
+                radii=np.full(frames, 0.01, np.float32)).partition([1] * frames))
+        for i, e in self.loaded.items() if recorded else ():
+            force = np.array([frame[2][i] @ e for frame in self._statics])
+            self.rec.send_columns(f"series/statics/{i}/force", indexes=times, columns=rr.Scalars.columns(scalars=force))
         self.frames += frames
         self._steps, self._pos, self._area_error, self._kinetic, self._awake = [], [], [], [], []
+        self._statics = []
 
     def close(self):
         self.flush()
@@ -153,7 +182,7 @@ class RerunRecorder:
 
 def replay(h5_path, rrd_path) -> int:
     """Write the recording of an existing trajectory file, without simulating. Returns frames."""
-    from .h5md import AREA, AWAKE, KINETIC, PARAMETERS, POSITION, open_trajectory, reading, stored_scene, text
+    from .h5md import AREA, AWAKE, KINETIC, PARAMETERS, POSITION, STATICS, open_trajectory, reading, stored_scene, text
     with open_trajectory(h5_path) as f, reading(h5_path):
         p = f[PARAMETERS]
         scene = stored_scene(f, h5_path)
@@ -177,8 +206,12 @@ def replay(h5_path, rrd_path) -> int:
                 for start in range(0, len(steps), BATCH_FRAMES):
                     stop = min(start + BATCH_FRAMES, len(steps))
                     block, a, k, w = pos["value"][start:stop], area[start:stop], kinetic[start:stop], awake[start:stop]
+                    moves = recorder.moving and STATICS in f
+                    sp, sa, sf = ((f[f"{STATICS}/{name}/value"][start:stop] for name in ("position", "angle", "force"))
+                                  if moves else (None, None, None))
                     for i in range(stop - start):
-                        recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i])
+                        recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i],
+                                        (sp[i], sa[i], sf[i]) if moves else None)
             finally:
                 recorder.close()
         return len(steps)

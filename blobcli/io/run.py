@@ -26,6 +26,7 @@ from ..scene.schema import Scene
 from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
 from ..sim.model import SimulationError, build, build_params
 from ..sim.pipeline import advance, compile_step, settings
+from ..sim.schedule import Schedules
 from . import interrupts
 from .h5md import DiskFull, TrajectoryError, TrajectoryWriter
 from .outputs import OutputError, OutputLock, output_problem
@@ -113,14 +114,16 @@ def _run_locked(scene, path, progress, resume, announce, threads) -> RunResult:
 
 
 def _run_chosen(scene, path, progress, resume, announce, model, state, params, choice) -> RunResult:
-    target = np.abs(model.target_area)
     worst = 0.0
     writer = TrajectoryWriter(path, scene, model, params)
+    schedules = Schedules(scene, model, params)  # they change the step's arrays between steps
+    live = schedules.arrays if schedules else model.arrays
 
     def record(n):
         nonlocal worst
-        area, kinetic = blob_measures(state, model)
+        area, kinetic = blob_measures(state, model, live.inv_mass)
         if n > 0:  # frame 0 is the shape as given: at rest area, not at pressure × rest area
+            target = np.abs(live.target_area)
             worst = max(worst, float(np.max(np.abs(np.abs(area) - target) / target)))
         try:
             writer.append(n, state, area, kinetic)
@@ -156,8 +159,12 @@ def _run_chosen(scene, path, progress, resume, announce, model, state, params, c
         chunk = 1  # steps per compiled call: grown to about CALL_SECONDS of wall time
         while done < params.steps and interrupts.pending() is None:
             threads, count = choice.plan(min(chunk, params.steps - done, params.every - done % params.every))
+            arrays = None
+            if schedules:  # one step per compiled call, its values set before it
+                count, arrays = 1, schedules.arrays
+                step_settings = schedules.apply(done, step_settings, state)
             t0, cpu0 = time.perf_counter(), time.process_time()
-            ran = advance(state, model, params, count, step_settings=step_settings)
+            ran = advance(state, model, params, count, step_settings=step_settings, arrays=arrays)
             elapsed = time.perf_counter() - t0
             choice.observe(threads, ran, elapsed, time.process_time() - cpu0)
             done += ran

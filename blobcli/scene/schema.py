@@ -32,6 +32,9 @@ MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no bl
 MAX_NAME = 100  # characters of a scene or blob name (the scene name becomes a file name)
 MAX_SURFACE_SPEED = 1000.0  # m/s: a conveyor surface's speed
 STATIC_MATERIAL_KEYS = ("friction", "static_friction", "restitution", "surface_velocity")  # any collider kind
+STATIC_MOTION_KEYS = ("velocity", "angular_velocity", "pivot", "path", "load", "load_direction", "mass")  # any kind
+MAX_KEYFRAMES = 10_000  # rows of a path or a schedule
+SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution")
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/sim/area.py
 
@@ -99,6 +102,9 @@ def key(default, unit: str, doc: str, kind: str, check=None):
     return field(default=default, metadata=dict(unit=unit, doc=doc, kind=kind, check=check))
 
 
+_key = key  # for a table with a key named `key` ([[schedule]])
+
+
 @dataclass(frozen=True)
 class SceneSettings:
     """`[scene]`: time stepping and the world."""
@@ -162,7 +168,8 @@ class BlobDef:
 
 @dataclass(frozen=True)
 class StaticDef:
-    """`[[static]]`: an immovable collider."""
+    """`[[static]]`: a collider: fixed, or moving in one of three ways (walls.py): at a constant
+    velocity, along a path of keyframes, or pushed by a load (a piston)."""
     kind: str = key(None, "", "plane, segment, box, circle or polygon", "str")
     point: tuple | None = key(None, "m", "plane: a point on it", "vec2")
     normal: tuple | None = key(None, "", "plane: normal pointing out of the solid side", "vec2", nonzero_vec)
@@ -185,9 +192,42 @@ class StaticDef:
                                   "of the solid (a floor carries them toward +x, a circle's wall with blobs outside "
                                   "turns clockwise, a drum's (inside = true) counter-clockwise: u = ω R)", "float",
                                   between(-MAX_SURFACE_SPEED, MAX_SURFACE_SPEED))
+    velocity: tuple | None = key(None, "m/s", "moves at this constant velocity (with `angular_velocity`: a "
+                                 "kinematic wall; default: fixed)", "vec2",
+                                 lambda v: None if math.hypot(*v) <= MAX_SURFACE_SPEED
+                                 else f"must be at most {MAX_SURFACE_SPEED:g} m/s")
+    angular_velocity: float | None = key(None, "rad/s", "turns at this rate about `pivot`, counter-clockwise",
+                                         "float", between(-1000.0, 1000.0))
+    pivot: tuple | None = key(None, "m", "the point it turns about, whose position and angle are recorded; "
+                              "default: a plane's point, a segment's midpoint, a box's or circle's centre, a "
+                              "polygon's centroid", "vec2")
+    path: tuple | None = key(None, "", "keyframes [t s, dx m, dy m, turn deg] of its displacement from the pose "
+                             "given (turned about `pivot`), linear between, the first held before it and the last "
+                             "after (instead of velocity)", "keyframes")
+    load: float | None = key(None, "N", "a loaded wall (a piston): pushed along `load_direction` by this force, "
+                             "it moves along that line only, under the load and the blobs' contact forces (not "
+                             "gravity: its weight, if wanted, is part of the load)", "float", nonnegative)
+    load_direction: tuple = key((0.0, -1.0), "", "a loaded wall's direction of motion and of its load",
+                                "vec2", nonzero_vec)
+    mass: float = key(1.0, "kg", "a loaded wall's mass", "float", positive)
 
 
-TABLES = {"scene": SceneSettings, "output": OutputSettings, "blob": BlobDef, "static": StaticDef}
+@dataclass(frozen=True)
+class ScheduleDef:
+    """`[[schedule]]`: a property that changes in time, linear between keyframes, the first held before
+    them and the last after; applied at the start of each step (t = step × dt)."""
+    key: str = key(None, "", "what changes: blob.NAME.KEY (NAME a blob's name, or NAME_* for a grid's copies; "
+                   "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + ") or scene.gravity", "str")
+    at: tuple = _key(None, "", "keyframes [t s, value] ([t, gx, gy] for gravity); `scale` is a linear size "
+                    "factor, 1 the size written: rest edge lengths × s, target area × s²", "keyframes")
+
+    @property
+    def blob_key(self) -> str:
+        return self.key.rsplit(".", 1)[1]
+
+
+TABLES = {"scene": SceneSettings, "output": OutputSettings, "blob": BlobDef, "static": StaticDef,
+          "schedule": ScheduleDef}
 DEFAULT_DURATION = 5.0  # s, when neither `duration` nor `steps` is given
 
 
@@ -198,6 +238,7 @@ class Scene:
     output: OutputSettings
     blobs: tuple[BlobDef, ...]
     statics: tuple[StaticDef, ...]
+    schedules: tuple[ScheduleDef, ...] = ()
     source: str = ""  # the file it came from
     text: str = ""  # its TOML text, stored in every output file
 
@@ -330,6 +371,25 @@ def _coerce(kind: str, v, path, problems: _Problems, unit: str = ""):
         if unit == "m" and max(abs(float(x)) for x in v) > MAX_COORDINATE:
             return bad(f"must be within ±{MAX_COORDINATE:g} m (positions beyond stop a run)")
         return (float(v[0]), float(v[1]))
+    if kind == "keyframes":  # [[t, values...], ...]: times in s, increasing
+        if not isinstance(v, list) or not v:
+            return bad("must be a list of keyframes [t, ...]")
+        if len(v) > MAX_KEYFRAMES:
+            return bad(f"at most {MAX_KEYFRAMES:,} keyframes")
+        rows = []
+        for i, row in enumerate(v):
+            if not isinstance(row, list) or len(row) < 2 or not all(_number(x) for x in row):
+                problems.add(path + (i,), "must be a list of numbers [t, value...]", row)
+                return None
+            if not all(_finite(x) for x in row):
+                problems.add(path + (i,), "must be finite", row)
+                return None
+            rows.append(tuple(float(x) for x in row))
+        if len({len(r) for r in rows}) > 1:
+            return bad("every keyframe must have the same length")
+        if rows[0][0] < 0.0 or any(b[0] <= a[0] for a, b in zip(rows, rows[1:])):
+            return bad("times must be >= 0 and increasing")
+        return tuple(rows)
     if kind == "points":
         if not isinstance(v, list) or len(v) < 3:
             return bad("must be a list of at least 3 [x, y] points")
@@ -423,7 +483,21 @@ def _check_blob(b: BlobDef, path, problems: _Problems):
                          f"positions beyond ±{MAX_COORDINATE:g} m stop a run", b.spacing)
 
 
-def _check_static(s: StaticDef, path, problems: _Problems):
+def _check_static(s: StaticDef, raw: dict, path, problems: _Problems):
+    ways = [way for way, keys in (("velocity", ("velocity", "angular_velocity")), ("path", ("path",)),
+                                  ("load", ("load",))) if any(k in raw for k in keys)]
+    if len(ways) > 1:
+        problems.add(path + (ways[1],), f"a collider moves in one way only: give {' or '.join(ways)}, not both",
+                     show_got=False)
+    if "pivot" in raw and not ({"angular_velocity", "path"} & set(raw)):
+        problems.add(path + ("pivot",), "only for a collider that turns (angular_velocity or path)", s.pivot)
+    for name in ("load_direction", "mass"):
+        if name in raw and "load" not in raw:
+            problems.add(path + (name,), "only for a loaded wall (give load)", getattr(s, name))
+    if s.path is not None and len(s.path[0]) != 4:
+        problems.add(path + ("path",), "keyframes are [t, dx, dy, turn]: 4 numbers each", list(s.path[0]))
+    if s.path is not None and len(s.path[0]) == 4 and max(max(abs(r[1]), abs(r[2])) for r in s.path) > MAX_COORDINATE:
+        problems.add(path + ("path",), f"displacements must be within ±{MAX_COORDINATE:g} m", show_got=False)
     if s.static_friction < s.friction:
         problems.add(path + ("static_friction",), f"must be >= friction ({s.friction})", s.static_friction)
     if s.kind == "segment" and math.dist(s.a, s.b) < MIN_LENGTH:
@@ -489,7 +563,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
                          + (f"; did you mean {hint[0]!r}?" if hint else ""), kind)
             continue
         geometry = COLLIDERS[kind].keys
-        allowed = ["kind", *geometry, *STATIC_MATERIAL_KEYS]
+        allowed = ["kind", *geometry, *STATIC_MATERIAL_KEYS, *STATIC_MOTION_KEYS]
         s = _table(StaticDef, rs, path, problems, allowed=allowed)
         if s is None:
             continue
@@ -497,15 +571,91 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         if missing:
             problems.add(path, f"{kind} needs {', '.join(missing)}", show_got=False)
             continue
-        _check_static(s, path, problems)
+        _check_static(s, rs, path, problems)
         static_defs.append(s)
 
-    scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), source, text)
+    schedule_defs = []
+    names = expanded_names(blob_defs)
+    for i, rs in enumerate(_array(raw, "schedule", problems)):
+        path = ("schedule", i)
+        s = _table(ScheduleDef, rs, path, problems)
+        if s is None:
+            continue
+        missing = [k for k in ("key", "at") if getattr(s, k) is None]
+        if missing:
+            problems.add(path, f"needs {' and '.join(missing)}", show_got=False)
+            continue
+        if _check_schedule(s, names, path, problems):
+            schedule_defs.append(s)
+    targets = [(s.key, tuple(schedule_targets(s, names))) for s in schedule_defs]
+    for i, (k, blobs_hit) in enumerate(targets):
+        for j in range(i):
+            if targets[j][0].rsplit(".", 1)[-1] == k.rsplit(".", 1)[-1] and set(targets[j][1]) & set(blobs_hit):
+                problems.add(("schedule", i, "key"), f"schedules the same property as schedule[{j}] "
+                             f"({targets[j][0]})", k)
+
+    scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), tuple(schedule_defs), source, text)
     if not problems.items:
         _check_size(scene, problems)
     if problems.items:
         raise SceneError(problems.items)
     return scene
+
+
+def expanded_names(blobs) -> list[str]:
+    """Every blob's name once grids are expanded, in model order (sim/model.build)."""
+    out = []
+    for i, b in enumerate(blobs):
+        name = b.name or f"blob{i}"
+        nx, ny = b.grid
+        out += [name] if (nx, ny) == (1, 1) else [f"{name}_{x}_{y}" for x in range(nx) for y in range(ny)]
+    return out
+
+
+def schedule_targets(s: ScheduleDef, names: list[str]) -> list[int]:
+    """The blob indices a blob schedule applies to (all of them for scene.gravity: none)."""
+    if s.key == "scene.gravity":
+        return []
+    import fnmatch
+    pattern = s.key[len("blob."):].rsplit(".", 1)[0]
+    return [k for k, name in enumerate(names) if fnmatch.fnmatchcase(name, pattern)]
+
+
+SCHEDULE_CHECKS = {"mass": positive, "pressure": positive, "scale": positive, "friction": nonnegative,
+                   "static_friction": nonnegative, "restitution": unit_interval}
+
+
+def _check_schedule(s: ScheduleDef, names, path, problems: _Problems) -> bool:
+    width = len(s.at[0])
+    if s.key == "scene.gravity":
+        if width != 3:
+            problems.add(path + ("at",), "gravity keyframes are [t, gx, gy]: 3 numbers each", list(s.at[0]))
+            return False
+        return True
+    parts = s.key.split(".")
+    if len(parts) < 3 or parts[0] != "blob":
+        problems.add(path + ("key",), "must be blob.NAME.KEY or scene.gravity", s.key)
+        return False
+    if parts[-1] not in SCHEDULED_BLOB_KEYS:
+        hint = difflib.get_close_matches(parts[-1], SCHEDULED_BLOB_KEYS, n=1)
+        problems.add(path + ("key",), f"KEY must be one of {', '.join(SCHEDULED_BLOB_KEYS)}"
+                     + (f"; did you mean {hint[0]!r}?" if hint else ""), s.key)
+        return False
+    if not schedule_targets(s, names):
+        pattern = ".".join(parts[1:-1])
+        hint = difflib.get_close_matches(pattern, names, n=1)
+        problems.add(path + ("key",), f"no blob is named {pattern!r}" + (f"; did you mean {hint[0]!r}?" if hint else
+                                                                        " (a grid's copies: NAME_*)"), s.key)
+        return False
+    if width != 2:
+        problems.add(path + ("at",), "keyframes are [t, value]: 2 numbers each", list(s.at[0]))
+        return False
+    for j, (_, value) in enumerate(s.at):
+        complaint = SCHEDULE_CHECKS[parts[-1]](value)
+        if complaint:
+            problems.add(path + ("at", j), f"{parts[-1]} {complaint}", value)
+            return False
+    return True
 
 
 def _array(raw: dict, name: str, problems: _Problems) -> list:
@@ -612,7 +762,10 @@ def resolved_toml(scene: Scene) -> str:
         table("[[blob]]", b, keys)
     from ..colliders import COLLIDERS
     for st in scene.statics:
-        table("[[static]]", st, ["kind", *COLLIDERS[st.kind].keys, *STATIC_MATERIAL_KEYS])
+        motion = [k for k in STATIC_MOTION_KEYS if k not in ("load_direction", "mass") or st.load is not None]
+        table("[[static]]", st, ["kind", *COLLIDERS[st.kind].keys, *STATIC_MATERIAL_KEYS, *motion])
+    for sc in scene.schedules:
+        table("[[schedule]]", sc)
     return "\n".join(out).rstrip() + "\n"
 
 
@@ -620,7 +773,7 @@ def reference_markdown() -> str:
     """The scene reference of docs/scenes.md, generated from the dataclass fields."""
     out = []
     for name, cls in TABLES.items():
-        header = f"[[{name}]]" if name in ("blob", "static") else f"[{name}]"
+        header = f"[[{name}]]" if name in ("blob", "static", "schedule") else f"[{name}]"
         out.append(f"### `{header}`\n\n| key | default | unit | meaning |\n|---|---|---|---|")
         for f in fields(cls):
             d = f.default

@@ -17,6 +17,8 @@ from .ring import ring_means
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter) ...
 MIN_REST_SPEED = 0.01  # m/s ... nor below this (without gravity, jitter from pushing overlaps apart)
 NO_BOUNCE = -math.inf  # leave energy of a contact that has not bounced yet (see `bounce`)
+# Whether a collider of the scene moves (pipeline.Configuration), bound per scene: this module value is never run.
+MOVING = True
 
 
 @inline_kernel
@@ -124,11 +126,16 @@ def update_velocities(pos, prev, offsets, awake, vel, contact_normal, contact_de
         D = contact_depth[i]
         if D == 0.0:
             continue
-        # At a static contact (static friction already held the vertex in the collider stage):
+        # At a static contact (static friction already held the vertex in the collider stage), relative
+        # to the collider's surface: a moving one's velocity w there (walls.py) ...
+        vx, vy = vel[0, i], vel[1, i]
+        if MOVING:
+            vx -= contact_material[4, i]
+            vy -= contact_material[5, i]
         nx, ny = contact_normal[0, i], contact_normal[1, i]
-        vn = vel[0, i] * nx + vel[1, i] * ny
-        vtx, vty = vel[0, i] - vn * nx, vel[1, i] - vn * ny
-        # relative to the surface, which moves at u along t = (n_y, -n_x) (a conveyor; statics.py)
+        vn = vx * nx + vy * ny
+        vtx, vty = vx - vn * nx, vy - vn * ny
+        # ... and a conveyor's, u along t = (n_y, -n_x) (statics.py)
         u = contact_material[3, i]
         if u != 0.0:
             vtx -= u * ny
@@ -147,6 +154,9 @@ def update_velocities(pos, prev, offsets, awake, vel, contact_normal, contact_de
         vn = max(vn, 0.0)
         vel[0, i] = vtx + vn * nx
         vel[1, i] = vty + vn * ny
+        if MOVING:
+            vel[0, i] += contact_material[4, i]
+            vel[1, i] += contact_material[5, i]
 
 
 @inline_kernel
@@ -188,7 +198,8 @@ def bounce(record, k, approach, energy, potential, potential_now, u, other, e, r
 @stage_kernel
 def restitution(pos, vel, offsets, awake, predicted, contact_normal, contact_depth, contact_material, impact, gx,
                 gy, rest_speed):
-    """Bounce off statics (the rule of `bounce`), of each blob's centre of mass.
+    """Bounce off statics (the rule of `bounce`), of each blob's centre of mass; off a moving collider,
+    in its frame: velocities relative to w̄, its surface's depth-weighted velocity at the contacts.
 
     A vertex cannot bounce on its own: the perimeter and area stages average its reversed
     velocity away against the rest of the blob, which is still falling. So restitution acts
@@ -203,6 +214,7 @@ def restitution(pos, vel, offsets, awake, predicted, contact_normal, contact_dep
         o, e = offsets[b], offsets[b + 1]
         nx = ny = ux = uy = kinetic = cx = cy = 0.0
         e_max = 0.0  # the largest restitution among its contacts
+        wx = wy = depth = 0.0  # Σ D w, Σ D: the contacts' surface velocity
         for i in range(o, e):
             cx += pos[0, i]
             cy += pos[1, i]
@@ -214,13 +226,28 @@ def restitution(pos, vel, offsets, awake, predicted, contact_normal, contact_dep
                 nx += D * contact_normal[0, i]
                 ny += D * contact_normal[1, i]
                 e_max = max(e_max, contact_material[2, i])
+                if MOVING:
+                    wx += D * contact_material[4, i]
+                    wy += D * contact_material[5, i]
+                    depth += D
         length = math.sqrt(nx * nx + ny * ny)
         if length == 0.0:  # airborne (its impact record is kept: see `bounce`)
             continue
         nx, ny = nx / length, ny / length
-        u = (ux * nx + uy * ny) / (e - o)  # the centre's speed along n̄, after the solve
-        du = bounce(impact, b, -(predicted[b, 0] * nx + predicted[b, 1] * ny), predicted[b, 2], predicted[b, 3],
-                    -(gx * cx + gy * cy) / (e - o), u, 0.5 * kinetic / (e - o) - 0.5 * u * u, e_max, rest_speed)
+        count = e - o
+        u = (ux * nx + uy * ny) / count  # the centre's speed along n̄, after the solve
+        approach = -(predicted[b, 0] * nx + predicted[b, 1] * ny)
+        came = predicted[b, 2]  # kinetic energy per unit mass before the solve ...
+        kinetic = 0.5 * kinetic / count  # ... and after
+        if MOVING:  # in the frame of the surface: v - w̄, ½ |v - w̄|² = ½ |v|² - w̄ · v + ½ |w̄|²
+            wx, wy = wx / depth, wy / depth
+            wn, w2 = wx * nx + wy * ny, 0.5 * (wx * wx + wy * wy)
+            u -= wn
+            approach += wn
+            came += w2 - (wx * predicted[b, 0] + wy * predicted[b, 1])
+            kinetic += w2 - (wx * ux + wy * uy) / count
+        du = bounce(impact, b, approach, came, predicted[b, 3], -(gx * cx + gy * cy) / count, u,
+                    kinetic - 0.5 * u * u, e_max, rest_speed)
         if du != 0.0:
             for i in range(o, e):
                 vel[0, i] += du * nx

@@ -20,11 +20,12 @@ def _blob_measures(pos, vel, inv_mass, offsets, area, kinetic):
         kinetic[b] = 0.5 * ke
 
 
-def blob_measures(state: State, model: Model) -> tuple[np.ndarray, np.ndarray]:
-    """(signed area (B,) m², kinetic energy (B,) J) of every blob."""
+def blob_measures(state: State, model: Model, inv_mass: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(signed area (B,) m², kinetic energy (B,) J) of every blob; `inv_mass`: a schedule's, not the model's."""
     area = np.empty(model.blob_count)
     kinetic = np.empty(model.blob_count)
-    _blob_measures(state.position, state.velocity, model.inv_mass, model.offsets, area, kinetic)
+    _blob_measures(state.position, state.velocity, model.inv_mass if inv_mass is None else inv_mass, model.offsets,
+                   area, kinetic)
     return area, kinetic
 
 

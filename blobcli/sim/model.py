@@ -7,18 +7,20 @@ its ring. Only `State` changes during a step; `Model` and `Params` are read-only
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
-from ..colliders import COLLIDERS, SOLVERS
+from ..colliders import COLLIDERS, SOLVERS, default_pivot
 from ..geometry import ring_next, signed_area
 from ..scene.schema import BlobDef, Scene, StaticDef
 from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
 from .sleep import begin_still
+from .walls import FIXED, LOADED, PATH, VELOCITY, WALL_POSE_COLUMNS, place_initial
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -59,11 +61,24 @@ class StaticSet:
     shape_offsets: np.ndarray  # (shapes + 1,) int64
     material: np.ndarray  # (shapes, 4): static friction μ_s, kinetic μ_k, restitution e, surface velocity (m/s)
     aabb: np.ndarray  # (shapes, 4): xmin, ymin, xmax, ymax
+    index: np.ndarray  # (shapes,) int64: each one's place among the scene's [[static]] tables
+
+
+class Walls(NamedTuple):
+    """How each collider moves (sim/walls.py), by its place among the scene's [[static]] tables."""
+    motion: np.ndarray  # (S,) int64: walls.FIXED, VELOCITY, PATH or LOADED
+    pivot: np.ndarray  # (S, 2) m: the point it turns about and is recorded at
+    drive: np.ndarray  # (S, 3): VELOCITY: vx, vy (m/s), ω (rad/s); LOADED: load F (N), its unit direction e
+    mass: np.ndarray  # (S,) kg: a loaded wall's mass
+    path_offsets: np.ndarray  # (S + 1,) int64: collider k's keyframes are path[path_offsets[k]:path_offsets[k+1]] ...
+    path: np.ndarray  # (K, 4) ... t (s), dx, dy (m), turn (rad)
+    kind: np.ndarray  # (S,) int64: its solver kind (index into SOLVERS) ...
+    shape: np.ndarray  # (S,) int64 ... and its place in that kind's StaticSet
 
 
 class ModelArrays(NamedTuple):
     """The numeric arrays of a Model (same names, same meaning), for the compiled step; each static
-    solver kind as (geom, shape_offsets, material, aabb) of its StaticSet, empty when absent."""
+    solver kind as (geom, shape_offsets, material, index) of its StaticSet, empty when absent."""
     offsets: np.ndarray
     blob_of: np.ndarray
     inv_mass: np.ndarray
@@ -78,10 +93,8 @@ class ModelArrays(NamedTuple):
     spring_pairs: np.ndarray
     spring_rest: np.ndarray
     spring_compliance: np.ndarray
-    planes: tuple
-    segments: tuple
-    circles: tuple
-    polygons: tuple
+    statics: tuple  # one per SOLVERS kind: its StaticSet's (geom, shape_offsets, material, index)
+    walls: Walls
 
 
 @dataclass(frozen=True)
@@ -99,6 +112,7 @@ class Model:
     material: np.ndarray  # (B, 3): static friction μ_s, kinetic μ_k, restitution e
     mass: np.ndarray  # (B,) kg
     statics: tuple[StaticSet, ...]  # one per collider kind present, in a fixed order
+    walls: Walls  # how each collider moves
     orient: np.ndarray  # (B,) +1 counter-clockwise, -1 clockwise: the sign of outward normals
     # Settings of the other area methods (see area.py):
     area_compliance: np.ndarray  # (B,) method xpbd: α of the area constraint
@@ -110,13 +124,23 @@ class Model:
     @cached_property
     def arrays(self) -> ModelArrays:
         """The model as the step's kernels read it."""
-        kinds = {s.kind: (s.geom, s.shape_offsets, s.material, s.aabb) for s in self.statics}
-        none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 4)), np.zeros((0, 4)))
+        kinds = {s.kind: (s.geom, s.shape_offsets, s.material, s.index) for s in self.statics}
+        none = (np.zeros((0, 4)), np.zeros(1, dtype=np.int64), np.zeros((0, 4)), np.zeros(0, dtype=np.int64))
         return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.rest_perimeter,
                            self.target_area,
                            self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
                            self.spring_pairs, self.spring_rest, self.spring_compliance,
-                           *(kinds.get(kind, none) for kind in SOLVERS))
+                           tuple(kinds.get(kind, none) for kind in SOLVERS), self.walls)
+
+    @property
+    def moving(self) -> bool:
+        """Whether a collider moves (walls.py)."""
+        return bool(np.any(self.walls.motion != FIXED))
+
+    @property
+    def loaded(self) -> bool:
+        """Whether a collider is a loaded wall."""
+        return bool(np.any(self.walls.motion == LOADED))
 
     @property
     def collides(self) -> bool:
@@ -164,8 +188,9 @@ class State(NamedTuple):
     lam: np.ndarray  # (N,) accumulated XPBD multipliers of the perimeter edges
     contact_normal: np.ndarray  # (2, N) unit normal of the vertex's static contact
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
-    contact_material: np.ndarray  # (4, N) combined μ_s, μ_k, e of that contact, and its surface's velocity (m/s)
-    #                                 along t = (n_y, -n_x) (statics.py)
+    contact_material: np.ndarray  # (6, N) combined μ_s, μ_k, e of that contact, its surface's velocity (m/s)
+    #                                 along t = (n_y, -n_x) (statics.py), and the velocity of a moving collider's
+    #                                 surface there, wx, wy (m/s; walls.py)
     perimeter_lam: np.ndarray  # (B,) the total-length constraints' multipliers this substep (perimeter.py)
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
@@ -185,6 +210,15 @@ class State(NamedTuple):
     stick_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64: where each contact's static friction holds the vertex,
     #                        as a material point of the other blob: an edge (its first vertex; -1: none) ...
     stick_t: np.ndarray  # (CONTACTS_PER_VERTEX, N) ... and the point's place along it, t in [0, 1]
+    steps_done: np.ndarray  # (1,) int64: steps since t = 0 (the time colliders move by)
+    static_pose: np.ndarray  # (S, 6) each collider's pose (walls.py): dx, dy (m), θ (rad), and a loaded wall's
+    #                          s (m), V (m/s) along its load direction, and s at the substep's start (m)
+    static_impulse: np.ndarray  # (S, 3) the impulses the blobs gave each collider over the last step: Jx, Jy (N s),
+    #                              and their moment about its pivot (N m s)
+    placed: tuple  # per SOLVERS kind, where its colliders are now: (geom, aabb, delta: the substep's motion, walls.py)
+    touch: tuple  # per vertex, this substep's pushes by colliders: (static_of (2, N) int64, static_push (4, N) m:
+    #               up to two colliders and their pushes; wall_of (N,) int64, wall_push (2, N) m: a loaded wall's
+    #               push this iteration)
 
     @property
     def pos(self) -> np.ndarray:
@@ -256,12 +290,13 @@ def build(scene: Scene) -> tuple[Model, State]:
     rest_length = np.hypot(*(pos[ring_next(offsets)] - pos).T)
 
     statics = build_statics(scene.statics)
+    walls = build_walls(scene.statics)
     springs = internal_springs(pos, offsets)
     model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
                   rest_length=rest_length, rest_perimeter=np.add.reduceat(rest_length, offsets[:-1]),
                   rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
-                  statics=statics,
+                  statics=statics, walls=walls,
                   orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
                   spring_compliance=1.0 / spring_stiffness)
@@ -272,7 +307,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   awake=np.ones(blobs, np.uint8), still=np.zeros(blobs),
                   still_center=np.zeros((blobs, 2)), still_angle=np.zeros(blobs),
                   previous=np.ascontiguousarray(pos.T), predicted=np.zeros((blobs, 4)), lam=np.zeros(n),
-                  contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((4, n)),
+                  contact_normal=np.zeros((2, n)), contact_depth=np.zeros(n), contact_material=np.zeros((6, n)),
                   perimeter_lam=np.zeros(blobs), area_lam=np.zeros(blobs),
                   spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
@@ -281,7 +316,11 @@ def build(scene: Scene) -> tuple[Model, State]:
                   anchor=np.zeros((2, n)), budget=np.zeros(blobs), moved=np.zeros(blobs),
                   blob_contact_depth=np.zeros(n),
                   stick_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
-                  stick_t=np.zeros((CONTACTS_PER_VERTEX, n)))
+                  stick_t=np.zeros((CONTACTS_PER_VERTEX, n)), steps_done=np.zeros(1, np.int64),
+                  static_pose=np.zeros((len(scene.statics), WALL_POSE_COLUMNS)),
+                  static_impulse=np.zeros((len(scene.statics), 3)), placed=initial_placed(statics),
+                  touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))))
+    place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
     begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)
     return model, state
 
@@ -307,19 +346,58 @@ def internal_springs(pos, offsets) -> np.ndarray:
 def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
     """Group colliders by solver kernel (boxes join the polygons), in the fixed order of SOLVERS."""
     rows: dict[str, list] = {k: [] for k in SOLVERS}
-    for s in statics:
+    for k, s in enumerate(statics):
         kind = COLLIDERS[s.kind]
         geom, box = kind.rows(s)
-        rows[kind.solver].append((geom, (s.static_friction, s.friction, s.restitution, s.surface_velocity), box))
+        rows[kind.solver].append((geom, (s.static_friction, s.friction, s.restitution, s.surface_velocity), box, k))
     out = []
     for kind in SOLVERS:
         if not rows[kind]:
             continue
-        sizes = [len(g) for g, _, _ in rows[kind]]
+        sizes = [len(g) for g, *_ in rows[kind]]
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
-        out.append(StaticSet(kind=kind, geom=np.ascontiguousarray(np.concatenate([g for g, _, _ in rows[kind]])),
+        out.append(StaticSet(kind=kind, geom=np.ascontiguousarray(np.concatenate([g for g, *_ in rows[kind]])),
                              shape_offsets=offsets,
-                             material=np.array([m for _, m, _ in rows[kind]], dtype=np.float64),
-                             aabb=np.array([b for _, _, b in rows[kind]], dtype=np.float64)))
+                             material=np.array([m for _, m, _, _ in rows[kind]], dtype=np.float64),
+                             aabb=np.array([b for _, _, b, _ in rows[kind]], dtype=np.float64),
+                             index=np.array([k for *_, k in rows[kind]], dtype=np.int64)))
+    return tuple(out)
+
+
+def build_walls(statics: tuple[StaticDef, ...]) -> Walls:
+    """How each collider moves, from its [[static]] table (walls.py)."""
+    S = len(statics)
+    motion, pivot, drive, mass = np.zeros(S, np.int64), np.zeros((S, 2)), np.zeros((S, 3)), np.ones(S)
+    path_offsets, path = np.zeros(S + 1, np.int64), []
+    kind, shape, seen = np.zeros(S, np.int64), np.zeros(S, np.int64), dict.fromkeys(SOLVERS, 0)
+    for k, s in enumerate(statics):
+        solver = COLLIDERS[s.kind].solver
+        kind[k], shape[k] = SOLVERS.index(solver), seen[solver]
+        seen[solver] += 1
+        pivot[k] = default_pivot(s)
+        if s.load is not None:
+            e = np.array(s.load_direction) / math.hypot(*s.load_direction)
+            motion[k], drive[k], mass[k] = LOADED, (s.load, *e), s.mass
+        elif s.path is not None:
+            motion[k] = PATH
+            path += [(t, dx, dy, math.radians(turn)) for t, dx, dy, turn in s.path]
+        elif s.velocity is not None or s.angular_velocity is not None:
+            motion[k], drive[k] = VELOCITY, (*(s.velocity or (0.0, 0.0)), s.angular_velocity or 0.0)
+        path_offsets[k + 1] = len(path)
+    return Walls(motion=motion, pivot=pivot, drive=drive, mass=mass, path_offsets=path_offsets,
+                 path=np.array(path, dtype=np.float64).reshape(-1, 4), kind=kind, shape=shape)
+
+
+def initial_placed(statics: tuple[StaticSet, ...]) -> tuple:
+    """The state's `placed` rows, per SOLVERS kind: every collider where the scene wrote it, not moving
+    (place_initial then puts the ones that move where they are at t = 0)."""
+    kinds = {s.kind: s for s in statics}
+    out = []
+    for kind in SOLVERS:
+        s = kinds.get(kind)
+        geom, aabb = (s.geom.copy(), s.aabb.copy()) if s else (np.zeros((0, 4)), np.zeros((0, 4)))
+        delta = np.zeros((len(aabb), 5))
+        delta[:, 0] = 1.0  # the identity map: cos 0 = 1
+        out.append((geom, aabb, delta))
     return tuple(out)

@@ -39,11 +39,12 @@ from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .sleep import update_sleep
 from .statics import collide_statics
+from .walls import account_contacts, finish_loaded_walls, place_walls, yield_loaded_walls
 
-STAGES = ("damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
+STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
 # the stage clock's slots
-(LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE, LAP_STATICS,
+(LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE, LAP_STATICS,
  LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
@@ -59,6 +60,8 @@ class Configuration(NamedTuple):
     circles: bool
     polygons: bool
     sleep: bool  # islands at rest go to sleep (sim/sleep.py)
+    moving: bool  # a collider moves (sim/walls.py) ...
+    loaded: bool  # ... or is a loaded wall
 
     def constants(self) -> dict:
         return {name.upper(): value for name, value in self._asdict().items()}
@@ -66,7 +69,7 @@ class Configuration(NamedTuple):
 
 # The configuration names the step reads. These module values (every stage, area method kot) are never
 # run: `advance` runs the build for the scene's Configuration.
-METHOD, COLLIDES, STATICS, SLEEP = KOT, True, True, True
+METHOD, COLLIDES, STATICS, SLEEP, MOVING, LOADED = KOT, True, True, True, True, True
 
 
 class StepSettings(NamedTuple):
@@ -105,10 +108,17 @@ def _advance(steps, state, model, settings, clock):
     t = _lap(clock, -1, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     for n in range(steps):
-        if awake_count == 0:  # everything asleep: nothing moves, and only a mover could wake it
+        if awake_count == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
+            s.steps_done[0] += 1
             continue
+        if STATICS:
+            s.static_impulse[:] = 0.0  # the impulses of this step, recorded with its frame
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
         for sub in range(c.substeps):
+            if MOVING:  # colliders to where they are at the substep's end; those near sleeping blobs wake them
+                place_walls((s.steps_done[0] * c.substeps + sub) * h, h, m.walls, s.static_pose, m.statics, s.placed,
+                            s.position, m.offsets, s.awake, s.still)
+                t = _lap(clock, LAP_WALLS, t)
             if c.damping > 0.0:
                 # (v - v_rigid) *= exp(-damping h)
                 damp_deformation(s.position, s.velocity, m.offsets, s.awake, damping)
@@ -157,9 +167,15 @@ def _advance(steps, state, model, settings, clock):
                                           s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t)
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
-                    collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.planes, m.segments,
-                                    m.circles, m.polygons, s.contact_normal, s.contact_depth, s.contact_material, h)
+                    collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
+                                    s.contact_normal, s.contact_depth, s.contact_material, s.touch, h)
+                    if LOADED:  # each loaded wall takes its share of its pushes (momentum kept)
+                        yield_loaded_walls(s.position, m.inv_mass, m.walls, s.static_pose, m.statics, s.placed, s.touch)
                     t = _lap(clock, LAP_STATICS, t)
+            if STATICS:  # the pushes as impulses on the colliders
+                account_contacts(s.position, m.inv_mass, m.walls, s.static_pose, s.touch, s.static_impulse, h)
+            if LOADED:
+                finish_loaded_walls(m.walls, s.static_pose, h)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)
@@ -183,6 +199,7 @@ def _advance(steps, state, model, settings, clock):
                                        s.contact_material, s.c_edge, s.awake, s.still, s.still_center,
                                        s.still_angle, c.sleep_speed, c.time_to_sleep, c.dt)
             t = _lap(clock, LAP_SLEEP, t)
+        s.steps_done[0] += 1
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:
             return n, RUNAWAY_VERTEX, bad
@@ -212,7 +229,7 @@ def configuration(model: Model, params: Params) -> Configuration:
     kinds = {s.kind for s in model.statics}
     return Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
                          planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
-                         polygons="polygon" in kinds, sleep=params.sleep)
+                         polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded)
 
 
 def settings(model: Model, params: Params) -> StepSettings:
@@ -240,7 +257,9 @@ def describe(model: Model, step_settings: StepSettings) -> str:
     c = step_settings.config
     kinds = [kind for kind, present in zip(SOLVERS, (c.planes, c.segments, c.circles, c.polygons)) if present]
     parts = [METHODS[c.method]] + (["blob contacts"] if c.collides else []) \
-        + ([" and ".join(kinds) + " colliders"] if kinds else []) + (["sleeping"] if c.sleep else [])
+        + ([" and ".join(kinds) + " colliders"] if kinds else []) + (["loaded walls"] if c.loaded else
+                                                                     ["moving walls"] if c.moving else []) \
+        + (["sleeping"] if c.sleep else [])
     return ", ".join(parts) + ("; parallel" if model.parallel else "; serial")
 
 
@@ -258,7 +277,7 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
 
 
 def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
-            step_settings: StepSettings | None = None) -> int:
+            step_settings: StepSettings | None = None, arrays=None) -> int:
     """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps), in one
     compiled call. Returns the steps done: fewer than asked only when a step left a vertex non-finite
     or beyond RUNAWAY (measure.first_runaway finds it). Raises SimulationError when far more blob
@@ -266,10 +285,11 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
 
     With `clock` (a dict), each stage's wall time is added to clock[stage name], in seconds:
     `blobsim bench` profiles the real step this way. `step_settings` (from `settings`) saves
-    rebuilding them on every call."""
+    rebuilding them on every call; `arrays` (a schedule's: sim/schedule.py) replace model.arrays."""
     timer = np.zeros(len(STAGES)) if clock is not None else NO_CLOCK
     step_settings = step_settings or settings(model, params)
-    done, why, detail = step_build(model, step_settings)(steps, state, model.arrays, step_settings, timer)
+    done, why, detail = step_build(model, step_settings)(steps, state, model.arrays if arrays is None else arrays,
+                                                         step_settings, timer)
     if clock is not None:
         for name, seconds in zip(STAGES, timer):
             clock[name] = clock.get(name, 0.0) + float(seconds)

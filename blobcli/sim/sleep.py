@@ -26,7 +26,8 @@ A sleeping blob is not simulated: every stage skips it, its positions stay exact
 were, its velocity is 0 (set when it falls asleep) and its contacts are cleared. Awake blobs
 that touch it during the step (before the island wakes at its end) treat it as immovable: its
 inverse mass in their contacts is 0, or the steady trade of area and contact pushes would
-press into it every iteration. Static colliders never move, so only blobs wake islands.
+press into it every iteration. A collider that moves wakes the blobs near it (walls.place_walls), and
+a blob touching a moving surface is never at rest.
 """
 
 import math
@@ -85,10 +86,11 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, contact_material
 
 @kernel
 def _on_moving_surface(contact_depth, contact_material, o, e):
-    """Whether a vertex of ring o..e touches a moving surface (a conveyor): such a blob is never at
-    rest, held in place against the belt or not, so its island never sleeps while it rides."""
+    """Whether a vertex of ring o..e touches a moving surface (a conveyor, a moving or loaded wall): such
+    a blob is never at rest, held in place against it or not, so its island never sleeps while it rides."""
     for i in range(o, e):
-        if contact_depth[i] > 0.0 and contact_material[3, i] != 0.0:
+        if contact_depth[i] > 0.0 and (contact_material[3, i] != 0.0 or contact_material[4, i] != 0.0
+                                       or contact_material[5, i] != 0.0):
             return True
     return False
 

@@ -1,4 +1,4 @@
-"""Static collider stages: push vertices out of immovable shapes. One signature, by kind.
+"""Collider stages: push vertices out of the colliders, fixed or moving. One signature, by kind.
 
 Each stage projects a penetrating vertex to the nearest surface, applies static friction
 there (`_stuck`), and records the contact (normal, push-out depth, combined material) for the
@@ -16,6 +16,13 @@ Materials combine as Box2D does: μ = √(μ_blob μ_static), e = max(e_blob, e_
 of the solid, without moving the collider: friction, static here and kinetic in the velocity
 update, acts on the slip relative to the surface, so a scene on a belt is the same scene on a fixed
 floor seen from a frame moving with the belt (Galilean invariance, tested).
+
+Colliders that move (walls.py) are where they are at the substep's end (`geom`, `aabb`: the state's
+placed rows), and each kernel tests a vertex's path relative to the collider: from its start carried
+with the collider, Δ(x_prev) (`delta`), to x. Fixed colliders in a scene where nothing moves skip that
+(MOVING, bound per scene), so their bits are what they were. Every push is recorded per vertex
+(walls.account), for the force the blobs exert on each collider, and a loaded wall's for its share of
+the push (walls.yield_loaded_walls).
 """
 
 import math
@@ -25,12 +32,15 @@ import numba
 from ..colliders import SOLVERS
 from ..jit import inline_kernel, stage_kernel
 from .ring import crosses_ray
+from .walls import account
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
+# Whether a collider of the scene moves (pipeline.Configuration), bound per scene: this module value is never run.
+MOVING = True
 
 
 @inline_kernel
-def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, contact_depth, contact_material):
+def _record(i, nx, ny, depth, wx, wy, blob_material, shape_material, contact_normal, contact_depth, contact_material):
     contact_normal[0, i] = nx
     contact_normal[1, i] = ny
     contact_depth[i] += depth
@@ -38,17 +48,20 @@ def _record(i, nx, ny, depth, blob_material, shape_material, contact_normal, con
     contact_material[1, i] = math.sqrt(blob_material[1] * shape_material[1])
     contact_material[2, i] = max(blob_material[2], shape_material[2])
     contact_material[3, i] = shape_material[3]
+    contact_material[4, i] = wx
+    contact_material[5, i] = wy
 
 
 @inline_kernel
-def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h):
+def _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h):
     """Where static friction holds the vertex: its slip along the surface this substep undone,
     if |Δx_t| <= μ_s D (Coulomb, at position level: Müller et al. 2020), D being how far the
-    surfaces pushed it out this substep. Returns (x, y) unchanged when it slides. On a moving
+    surfaces pushed it out this substep, and Δx = x - x0 its motion relative to the collider (x0: its
+    start, carried with a moving collider). Returns (x, y) unchanged when it slides. On a moving
     surface (a conveyor: speed u along t = (n_y, -n_x)) the slip is relative to it, Δx_t - u h t:
     a held vertex moves with the belt."""
     nx, ny = contact_normal[0, i], contact_normal[1, i]
-    dx, dy = x - prev[0, i], y - prev[1, i]
+    dx, dy = x - x0, y - y0
     dn = dx * nx + dy * ny
     tx, ty = dx - dn * nx, dy - dn * ny
     u = contact_material[3, i]
@@ -61,9 +74,33 @@ def _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h):
 
 
 @inline_kernel
-def _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material, h):
+def _carried(delta, s, x, y):
+    """Δ(x): where a point at x at the substep's start is now, carried with collider s."""
+    return delta[s, 0] * x - delta[s, 1] * y + delta[s, 2], delta[s, 1] * x + delta[s, 0] * y + delta[s, 3]
+
+
+@inline_kernel
+def _surface_velocity(delta, s, x, y, h):
+    """w = (x - Δ⁻¹(x)) / h: the velocity of collider s's material point at x over the substep."""
+    ux, uy = x - delta[s, 2], y - delta[s, 3]
+    return (x - (delta[s, 0] * ux + delta[s, 1] * uy)) / h, (y - (delta[s, 0] * uy - delta[s, 1] * ux)) / h
+
+
+@inline_kernel
+def _pushed(i, k, dx, dy, loaded, touch):
+    """Record collider k's push (dx, dy) of vertex i: for its force, and a loaded wall's share."""
+    static_of, static_push, wall_of, wall_push = touch
+    account(i, k, dx, dy, static_of, static_push)
+    if loaded != 0.0:
+        wall_of[i] = k
+        wall_push[0, i] += dx
+        wall_push[1, i] += dy
+
+
+@inline_kernel
+def _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth, contact_material, h):
     """_stuck, but only where that is outside the circle (a chord of a curved surface is not)."""
-    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
+    sx, sy = _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h)
     if (sx - cx) ** 2 + (sy - cy) ** 2 >= r * r:
         return sx, sy
     return x, y
@@ -80,34 +117,45 @@ def _inside_shape(geom, start, stop, x, y):
 
 
 @stage_kernel
-def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                   contact_normal, contact_depth, contact_material, h):
+def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material, index,
+                   contact_normal, contact_depth, contact_material, touch, h):
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
+        x, y = pos[0, i], pos[1, i]
         for s in range(geom.shape[0]):
             px, py, nx, ny = geom[s, 0], geom[s, 1], geom[s, 2], geom[s, 3]
-            d = (pos[0, i] - px) * nx + (pos[1, i] - py) * ny
+            d = (x - px) * nx + (y - py) * ny
             if d < 0.0:
-                _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                qx, qy = x - d * nx, y - d * ny  # onto the plane
+                x0, y0, wx, wy = prev[0, i], prev[1, i], 0.0, 0.0
+                if MOVING:
+                    x0, y0 = _carried(delta, s, x0, y0)
+                    wx, wy = _surface_velocity(delta, s, qx, qy, h)
+                _record(i, nx, ny, -d, wx, wy, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
-                # on the plane, and held there by static friction (it stays on a flat plane)
-                pos[0, i], pos[1, i] = _stuck(i, pos[0, i] - d * nx, pos[1, i] - d * ny, prev, contact_normal,
-                                              contact_depth, contact_material, h)
+                # held there by static friction (it stays on a flat plane)
+                qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
+                _pushed(i, index[s], qx - x, qy - y, delta[s, 4], touch)
+                x, y = qx, qy
+        pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
-def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                     contact_normal, contact_depth, contact_material, h):
+def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material,
+                     index, contact_normal, contact_depth, contact_material, touch, h):
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
-        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
+        x, y = pos[0, i], pos[1, i]
         for s in range(geom.shape[0]):
+            x0, y0 = prev[0, i], prev[1, i]
+            if MOVING:
+                x0, y0 = _carried(delta, s, x0, y0)
             if (max(x, x0) < aabb[s, 0] - SKIN or min(x, x0) > aabb[s, 2] + SKIN
                     or max(y, y0) < aabb[s, 1] - SKIN or min(y, y0) > aabb[s, 3] + SKIN):
                 continue
@@ -132,28 +180,45 @@ def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, shape_offse
             if u < 0.0 or u > length:
                 continue
             depth = SKIN - s1
-            _record(i, side * nx, side * ny, depth, blob_material[blob_of[i]], shape_material[s],
+            qx, qy = x + depth * side * nx, y + depth * side * ny
+            wx = wy = 0.0
+            if MOVING:
+                wx, wy = _surface_velocity(delta, s, qx, qy, h)
+            _record(i, side * nx, side * ny, depth, wx, wy, blob_material[blob_of[i]], shape_material[s],
                     contact_normal, contact_depth, contact_material)
-            x, y = _stuck(i, x + depth * side * nx, y + depth * side * ny, prev, contact_normal, contact_depth,
-                          contact_material, h)
+            qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
+            _pushed(i, index[s], qx - x, qy - y, delta[s, 4], touch)
+            x, y = qx, qy
         pos[0, i], pos[1, i] = x, y
 
 
 @stage_kernel
-def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                    contact_normal, contact_depth, contact_material, h):
+def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material, index,
+                    contact_normal, contact_depth, contact_material, touch, h):
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
-        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
+        x, y = pos[0, i], pos[1, i]
         for s in range(geom.shape[0]):
+            x0, y0 = prev[0, i], prev[1, i]
+            if MOVING:
+                x0, y0 = _carried(delta, s, x0, y0)
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
                     or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
                 continue
             cx, cy, r = geom[s, 0], geom[s, 1], geom[s, 2]
+            bx, by = x, y  # before this circle
+            wx = wy = 0.0
             if geom[s, 3] != 0.0:  # a container
-                x, y = _inside_circle(i, x, y, cx, cy, r, prev, blob_of, blob_material, shape_material[s],
-                                      contact_normal, contact_depth, contact_material, h)
+                x, y, nx, ny, depth = _inside_circle(x, y, cx, cy, r)
+                if depth > 0.0:
+                    if MOVING:
+                        wx, wy = _surface_velocity(delta, s, x, y, h)
+                    _record(i, nx, ny, depth, wx, wy, blob_material[blob_of[i]], shape_material[s], contact_normal,
+                            contact_depth, contact_material)
+                    x, y = _held_inside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
+                                               contact_material, h)
+                    _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
                 continue
             fx, fy = x0 - cx, y0 - cy
             dx, dy = x - x0, y - y0
@@ -170,10 +235,13 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                     if d < 0.0:  # onto the tangent line at the entry point
                         x -= d * nx
                         y -= d * ny
-                        _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                        if MOVING:
+                            wx, wy = _surface_velocity(delta, s, x, y, h)
+                        _record(i, nx, ny, -d, wx, wy, blob_material[blob_of[i]], shape_material[s],
                                 contact_normal, contact_depth, contact_material)
-                        x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth,
+                        x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                                      contact_material, h)
+                        _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
                         continue
             rx, ry = x - cx, y - cy
             dist = math.sqrt(rx * rx + ry * ry)
@@ -183,29 +251,33 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, shape_offset
                 else:
                     nx, ny = 0.0, 1.0
                 x, y = cx + r * nx, cy + r * ny
-                _record(i, nx, ny, r - dist, blob_material[blob_of[i]], shape_material[s],
+                if MOVING:
+                    wx, wy = _surface_velocity(delta, s, x, y, h)
+                _record(i, nx, ny, r - dist, wx, wy, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
-                x, y = _stuck_outside_circle(i, x, y, cx, cy, r, prev, contact_normal, contact_depth, contact_material,
-                                             h)
+                x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
+                                             contact_material, h)
+                _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
         pos[0, i], pos[1, i] = x, y
 
 
 @inline_kernel
-def _inside_circle(i, x, y, cx, cy, r, prev, blob_of, blob_material, shape_material, contact_normal, contact_depth,
-                   contact_material, h):
+def _inside_circle(x, y, cx, cy, r):
     """A circle with blobs inside, solid outside (a drum): a vertex beyond the radius goes back to the
     nearest point of the circle, along the radius (no sweep needed: the solid has no far side to
-    tunnel to), with the inward normal. Static friction holds it on the wall: the held point, on the
-    tangent line, is brought back onto the circle along its radius. Returns the new (x, y)."""
+    tunnel to), with the inward normal. Returns (x, y, nx, ny, depth), depth 0 inside."""
     rx, ry = x - cx, y - cy
     dist = math.sqrt(rx * rx + ry * ry)
     if dist <= r:
-        return x, y
-    nx, ny = -rx / dist, -ry / dist
-    x, y = cx + r * rx / dist, cy + r * ry / dist
-    _record(i, nx, ny, dist - r, blob_material[blob_of[i]], shape_material, contact_normal, contact_depth,
-            contact_material)
-    sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
+        return x, y, 0.0, 0.0, 0.0
+    return cx + r * rx / dist, cy + r * ry / dist, -rx / dist, -ry / dist, dist - r
+
+
+@inline_kernel
+def _held_inside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth, contact_material, h):
+    """Static friction holds a vertex on a drum's wall: the held point, on the tangent line, is brought
+    back onto the circle along its radius."""
+    sx, sy = _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h)
     qx, qy = sx - cx, sy - cy
     q = math.sqrt(qx * qx + qy * qy)
     if q > r:
@@ -214,17 +286,22 @@ def _inside_circle(i, x, y, cx, cy, r, prev, blob_of, blob_material, shape_mater
 
 
 @stage_kernel
-def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offsets, shape_material, aabb,
-                     contact_normal, contact_depth, contact_material, h):
+def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material,
+                     index, contact_normal, contact_depth, contact_material, touch, h):
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
-        x, y, x0, y0 = pos[0, i], pos[1, i], prev[0, i], prev[1, i]
+        x, y = pos[0, i], pos[1, i]
         for s in range(shape_offsets.shape[0] - 1):
+            x0, y0 = prev[0, i], prev[1, i]
+            if MOVING:
+                x0, y0 = _carried(delta, s, x0, y0)
             if (max(x, x0) < aabb[s, 0] or min(x, x0) > aabb[s, 2]
                     or max(y, y0) < aabb[s, 1] or min(y, y0) > aabb[s, 3]):
                 continue
+            bx0, by0 = x, y  # before this polygon
+            wx = wy = 0.0
             inside = False
             best_t, best = 2.0, -1
             for k in range(shape_offsets[s], shape_offsets[s + 1]):
@@ -249,7 +326,9 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offse
                 d = (x - ax) * nx + (y - ay) * ny
                 x -= d * nx
                 y -= d * ny
-                _record(i, nx, ny, -d, blob_material[blob_of[i]], shape_material[s],
+                if MOVING:
+                    wx, wy = _surface_velocity(delta, s, x, y, h)
+                _record(i, nx, ny, -d, wx, wy, blob_material[blob_of[i]], shape_material[s],
                         contact_normal, contact_depth, contact_material)
                 # Beside a reflex corner that line runs inside the solid: check again.
                 inside = _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], x, y)
@@ -269,13 +348,16 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, shape_offse
                 if depth > 0.0:
                     nx, ny = (qx - x) / depth, (qy - y) / depth
                     x, y = qx, qy
-                    _record(i, nx, ny, depth, blob_material[blob_of[i]], shape_material[s],
+                    if MOVING:
+                        wx, wy = _surface_velocity(delta, s, x, y, h)
+                    _record(i, nx, ny, depth, wx, wy, blob_material[blob_of[i]], shape_material[s],
                             contact_normal, contact_depth, contact_material)
             if best >= 0 or inside:
                 # Static friction, unless holding the vertex would put it inside (reflex corners).
-                sx, sy = _stuck(i, x, y, prev, contact_normal, contact_depth, contact_material, h)
+                sx, sy = _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h)
                 if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
                     x, y = sx, sy
+                _pushed(i, index[s], x - bx0, y - by0, delta[s, 4], touch)
         pos[0, i], pos[1, i] = x, y
 
 
@@ -288,19 +370,21 @@ PLANES = SEGMENTS = CIRCLES = POLYGONS = True
 
 
 @stage_kernel
-def collide_statics(pos, prev, blob_of, awake, blob_material, planes, segments, circles, polygons,
-                    contact_normal, contact_depth, contact_material, h):
-    """Push vertices out of every static collider: one kernel per solver kind present. Each kind
-    comes as its rows (geom, shape_offsets, material, aabb: model.StaticSet), empty if absent."""
+def collide_statics(pos, prev, blob_of, awake, blob_material, rest, placed, contact_normal, contact_depth,
+                    contact_material, touch, h):
+    """Push vertices out of every collider: one kernel per solver kind present. Each kind comes as its
+    model rows (rest: geom as written, shape_offsets, material, index: its colliders' places in the
+    scene) and the state's (placed: geom and aabb where they are now, delta: their motion this substep),
+    empty if absent."""
     if PLANES:
-        _collide_plane(pos, prev, blob_of, awake, blob_material, *planes, contact_normal, contact_depth,
-                       contact_material, h)
+        _collide_plane(pos, prev, blob_of, awake, blob_material, *placed[0], *rest[0][1:], contact_normal,
+                       contact_depth, contact_material, touch, h)
     if SEGMENTS:
-        _collide_segment(pos, prev, blob_of, awake, blob_material, *segments, contact_normal, contact_depth,
-                         contact_material, h)
+        _collide_segment(pos, prev, blob_of, awake, blob_material, *placed[1], *rest[1][1:], contact_normal,
+                         contact_depth, contact_material, touch, h)
     if CIRCLES:
-        _collide_circle(pos, prev, blob_of, awake, blob_material, *circles, contact_normal, contact_depth,
-                        contact_material, h)
+        _collide_circle(pos, prev, blob_of, awake, blob_material, *placed[2], *rest[2][1:], contact_normal,
+                        contact_depth, contact_material, touch, h)
     if POLYGONS:
-        _collide_polygon(pos, prev, blob_of, awake, blob_material, *polygons, contact_normal, contact_depth,
-                         contact_material, h)
+        _collide_polygon(pos, prev, blob_of, awake, blob_material, *placed[3], *rest[3][1:], contact_normal,
+                         contact_depth, contact_material, touch, h)

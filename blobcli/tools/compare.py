@@ -3,7 +3,8 @@
 A vertex coordinate agrees when |a - b| <= atol + rtol |b|; with both tolerances 0 (the
 default) that is equality, bit for bit, except that NaN agrees with NaN. NaN against a
 number is always a difference. Chaotic scenes diverge over time, so the report also says
-where divergence starts: the first frame beyond 1e-12, 1e-9, 1e-6 and 1e-3 m.
+where divergence starts: the first frame beyond 1e-12, 1e-9, 1e-6 and 1e-3 m. The colliders' recorded
+positions (m) and angles (deg) are compared too (format 7 on), with the same tolerances.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..io.h5md import PARAMETERS, POSITION, TrajectoryError, open_trajectory, reading, text
+from ..io.h5md import PARAMETERS, POSITION, STATICS, TrajectoryError, open_trajectory, reading, text
 
 DIVERGENCE_LEVELS = (1e-12, 1e-9, 1e-6, 1e-3)  # m
 FRAMES_PER_READ = 256  # frames read at a time, so files larger than memory compare too
@@ -77,7 +78,9 @@ def _open(path, allow_incomplete):
             meta = {"value": pos["value"], "step": pos["step"][...], "time": pos["time"][...],
                     "offsets": f[PARAMETERS]["blob_offsets"][...],
                     "names": [text(n) for n in f[PARAMETERS]["blob_names"][...]],
-                    "complete": bool(f.attrs["complete"])}
+                    "complete": bool(f.attrs["complete"]),
+                    "statics": {name: f[f"{STATICS}/{name}/value"] for name in ("position", "angle")}
+                    if STATICS in f else {}}
     except TrajectoryError as e:
         f.close()
         raise CannotCompare(str(e)) from None
@@ -157,8 +160,27 @@ def _compare(name_a, name_b, a, b, atol, rtol, frames, until) -> Report:
             first = {"frame": frame, "step": int(a["step"][frame]), "time": float(a["time"][frame]),
                      "blob": blob, "blob_name": names[blob], "vertex": int(v - offsets[blob]),
                      "a": xa[f, v].tolist(), "b": xb[f, v].tolist()}
+    notes += _compare_statics(a["statics"], b["statics"], a["step"], limit, atol, rtol)
     order = np.argsort(-per_blob, kind="stable")[:5]
     return Report(a=name_a, b=name_b, atol=atol, rtol=rtol, frames=limit, max_deviation=max_dev,
                   rms_deviation=(sum_sq / count) ** 0.5 if count else 0.0, first_difference=first,
                   worst_blobs=[(names[k], float(per_blob[k])) for k in order if per_blob[k] > 0],
                   divergence=divergence, notes=notes)
+
+
+def _compare_statics(a, b, steps, limit, atol, rtol) -> list[str]:
+    """Notes on where the two runs' colliders first differ (none: they agree, or a file has none recorded: a
+    format before 7, whose colliders never moved)."""
+    if not a or not b:
+        return []
+    if a["position"].shape[1] != b["position"].shape[1]:
+        return [f"different colliders: {a['position'].shape[1]} vs {b['position'].shape[1]} recorded"]
+    for name, unit in (("position", "m"), ("angle", "deg")):
+        xa, xb = a[name][:limit], b[name][:limit]
+        bad = ~np.isclose(xa, xb, rtol=rtol, atol=atol, equal_nan=True) if (atol or rtol) else \
+            ((xa != xb) & ~(np.isnan(xa) & np.isnan(xb)))
+        if bad.any():
+            f, k = np.unravel_index(int(np.argmax(bad)), bad.shape)[:2]
+            return [f"collider static[{k}] {name} differs from frame {f} (step {int(steps[f])}): "
+                    f"{xa[f, k].tolist()} vs {xb[f, k].tolist()} {unit}"]
+    return []

@@ -9,21 +9,28 @@ from pathlib import Path
 
 import numpy as np
 
-from ..colliders import COLLIDERS
+from ..colliders import COLLIDERS, default_pivot
 from ..io.h5md import TrajectoryError, open_trajectory, read_trajectory, stored_scene
 from ..io.recording import blob_colors
 
 
-def draw_statics(ax, statics, lo, hi):
+def draw_statics(ax, statics, lo, hi, position=None, angle=None):
+    """The colliders, each where the frame's recorded `position` (its pivot, (S, 2) m) and `angle` ((S,) deg)
+    put it, when given (format 7 on), else where the scene wrote it."""
     extent = 2.0 * float(np.max(hi - lo))
-    for s in statics:
+    for i, s in enumerate(statics):
         line = COLLIDERS[s.kind].outline(s, extent)
+        normal = np.array(s.normal) / np.hypot(*s.normal) if s.kind == "plane" else None
+        if position is not None:
+            c, t = np.cos(np.radians(angle[i])), np.sin(np.radians(angle[i]))
+            turn = np.array([[c, t], [-t, c]])  # row vectors: p @ turn = R(angle) p
+            line = (line - np.array(default_pivot(s))) @ turn + position[i]
+            normal = normal @ turn if normal is not None else None
         if s.kind == "segment" or (s.kind == "circle" and s.inside):  # a line: no solid, or one all around
             ax.plot(line[:, 0], line[:, 1], color="0.3", lw=2, zorder=1)
             continue
         if s.kind == "plane":  # the solid half-plane: a big quad behind the line
-            n = np.array(s.normal) / np.hypot(*s.normal)
-            line = np.array([line[0], line[1], line[1] - extent * n, line[0] - extent * n])
+            line = np.array([line[0], line[1], line[1] - extent * normal, line[0] - extent * normal])
         ax.fill(line[:, 0], line[:, 1], color="0.55", zorder=1)
 
 
@@ -47,7 +54,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
                              squeeze=False)
     colors = blob_colors(len(t.offsets) - 1) / 255.0
     for ax, f in zip(axes[0], picks):
-        draw_statics(ax, scene.statics, lo, hi)
+        poses = (t.statics["position"][f], t.statics["angle"][f]) if t.statics else (None, None)
+        draw_statics(ax, scene.statics, lo, hi, *poses)
         for b in range(len(t.offsets) - 1):
             ring = t.position[f, t.offsets[b]:t.offsets[b + 1]]
             ax.fill(ring[:, 0], ring[:, 1], color=colors[b], alpha=0.85, lw=0.6, ec="0.15", zorder=2)

@@ -1,0 +1,83 @@
+"""Schedules: blob properties and gravity that change in time ([[schedule]] tables).
+
+Each is linear between its keyframes, holds the first before them and the last after (np.interp), and
+is applied at the start of each step, t = step × dt: a function of the step alone, so a resumed run
+takes the same values as an uninterrupted one. The model stays as the scene built it; the step reads
+`Schedules.arrays`, the model's arrays with its own copies of those a schedule changes:
+
+    mass m:        inv_mass of each vertex = n / m (n vertices)
+    pressure p, scale s:  target_area = p × rest_area × s²; rest edge lengths and perimeter × s
+    friction, static_friction, restitution: the blob's material (combined at each contact as before)
+    scene.gravity: the step's settings (g, "up", the rest speed of restitution)
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..scene.schema import Scene, expanded_names, schedule_targets
+from .model import Model, Params
+from .pipeline import StepSettings, settings
+
+MATERIAL_COLUMN = {"static_friction": 0, "friction": 1, "restitution": 2}  # of Model.material
+
+
+class Schedules:
+    """The scene's schedules, and the arrays they write."""
+
+    def __init__(self, scene: Scene, model: Model, params: Params):
+        names = expanded_names(scene.blobs)
+        self.model, self.params = model, params
+        self.blob_items = []  # (key, blob indices, times, values)
+        self.gravity = None  # (times, gx values, gy values)
+        for s in scene.schedules:
+            at = np.array(s.at)
+            if s.key == "scene.gravity":
+                self.gravity = (at[:, 0], at[:, 1], at[:, 2])
+            else:
+                self.blob_items.append((s.blob_key, np.array(schedule_targets(s, names), np.int64), at[:, 0],
+                                        at[:, 1]))
+        a = model.arrays
+        self.pressure = model.target_area / model.rest_area  # (B,): as the scene wrote it
+        self.scale = np.ones(model.blob_count)
+        self.arrays = a._replace(inv_mass=a.inv_mass.copy(), rest_length=a.rest_length.copy(),
+                                 rest_perimeter=a.rest_perimeter.copy(), target_area=a.target_area.copy(),
+                                 material=a.material.copy())
+
+    def __bool__(self) -> bool:
+        return bool(self.blob_items) or self.gravity is not None
+
+    def apply(self, step: int, step_settings: StepSettings, state) -> StepSettings:
+        """Write every scheduled value at t = step × dt; return the step's settings (gravity). A blob whose
+        properties change is woken (a growing blob is not at rest, though its centre stays put)."""
+        t = step * self.params.dt
+        m, a = self.model, self.arrays
+        counts = np.diff(m.offsets)
+        for key, blobs, times, values in self.blob_items:
+            v = float(np.interp(t, times, values))
+            if v != float(np.interp((step - 1) * self.params.dt, times, values)):
+                state.awake[blobs] = 1
+                state.still[blobs] = 0.0
+            if key in MATERIAL_COLUMN:
+                a.material[blobs, MATERIAL_COLUMN[key]] = v
+                continue
+            if key == "mass":
+                for b in blobs:
+                    a.inv_mass[m.offsets[b]:m.offsets[b + 1]] = counts[b] / v
+                continue
+            if key == "pressure":
+                self.pressure[blobs] = v
+            else:  # scale
+                self.scale[blobs] = v
+                for b in blobs:
+                    o, e = m.offsets[b], m.offsets[b + 1]
+                    a.rest_length[o:e] = m.rest_length[o:e] * v
+                a.rest_perimeter[blobs] = m.rest_perimeter[blobs] * v
+            a.target_area[blobs] = self.pressure[blobs] * m.rest_area[blobs] * self.scale[blobs] ** 2
+        if self.gravity is None:
+            return step_settings
+        times, gx, gy = self.gravity
+        g = np.array([np.interp(t, times, gx), np.interp(t, times, gy)])
+        return settings(m, replace(self.params, gravity=g))

@@ -1,0 +1,200 @@
+"""Walls that move (issue "Worlds that move"): kinematic colliders (velocity, path), loaded walls (a
+piston), schedules, and what is recorded of them."""
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import GALILEAN, STATIC_PENETRATION, blobsim, scene
+
+from blobcli import build, build_params, parse_scene
+from blobcli.scene.schema import SceneError
+from blobcli.sim.measure import blob_measures
+from blobcli.sim.pipeline import advance
+from blobcli.tools.compare import compare_files
+
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+PISTON_FORCE = 0.01  # relative: the recorded force on a piston at rest vs its load, over its last second
+PISTON_REST = 1e-3  # m/s: a piston at rest moves slower than this
+PRESSED_AREA = 0.01  # relative area error of Gish under the press (scenes/press.toml: 0.74% measured)
+ROUND_AGAIN = 0.01  # relative: Gish's height and width after the press is gone vs before it came down
+RIDE = 0.01  # relative: a blob riding a platform goes at the platform's speed
+
+PLATFORM = """[scene]
+sleep = false
+duration = 3.0
+[[blob]]
+center = [0.0, 0.4001]
+radius = 0.4
+velocity = [{v}, 0.0]
+friction = 0.8
+[[static]]
+kind = "box"
+center = [0.0, -0.5]
+size = [40.0, 1.0]
+friction = 0.8
+{motion}
+"""
+
+
+def run(text, steps=None, each=None):
+    """Model and state after the scene's steps (or `steps`), calling each(n, state) after every step."""
+    sc = scene(text)
+    model, state = build(sc)
+    params = build_params(sc)
+    for n in range(steps or params.steps):
+        advance(state, model, params, 1)
+        if each is not None:
+            each(n, state)
+    return model, state, params
+
+
+def centres(v, motion):
+    out = []
+    _, _, params = run(PLATFORM.format(v=v, motion=motion), each=lambda n, s: out.append(s.pos.mean(axis=0)))
+    return np.array(out), params.dt
+
+
+def test_a_blob_set_down_on_a_moving_platform_moves_as_one_launched_backwards_on_a_fixed_one():
+    """x_platform(t) - V t = x_fixed(t) and the same y, within GALILEAN over 3 s: it slides, then rolls."""
+    moving, dt = centres(0.0, "velocity = [1.0, 0.0]")
+    fixed, _ = centres(-1.0, "")
+    t = dt * np.arange(1, len(moving) + 1)
+    assert np.abs(moving[:, 0] - t - fixed[:, 0]).max() < GALILEAN
+    assert np.abs(moving[:, 1] - fixed[:, 1]).max() < GALILEAN
+    assert 0.45 < (moving[-1, 0] - moving[-2, 0]) / dt < 0.75  # a ring dragged from rest rolls at about V/2
+
+
+def test_a_blob_with_the_platforms_velocity_rides_along_with_it():
+    moving, dt = centres(1.0, "velocity = [1.0, 0.0]")
+    speed = np.diff(moving[:, 0]) / dt
+    assert np.abs(speed - 1.0).max() < RIDE
+
+
+def piston(load, seconds=8.0):
+    """scenes/piston.toml at this load: the piston's height and speed over the run, and the force the blobs
+    exert on it (recorded as in /observables/statics/force), step by step."""
+    text = (SCENES / "piston.toml").read_text().replace("load = 200.0", f"load = {load}")
+    heights, forces = [], []
+    model, state, params = run(text.replace("duration = 8.0", f"duration = {seconds}"),
+                               each=lambda n, s: (heights.append(model_y(s)), forces.append(s.static_impulse[3, 1])))
+    return np.array(heights), np.array(forces) / params.dt, params.dt
+
+
+def model_y(state):
+    return 2.6 + state.static_pose[3, 1]  # the piston's centre: its pivot plus its displacement
+
+
+def test_a_loaded_piston_comes_to_rest_where_the_pile_pushes_back_with_its_load():
+    heights, forces, dt = piston(200.0)
+    last = slice(-int(round(1.0 / dt)), None)
+    assert np.abs(np.diff(heights[last])).max() / dt < PISTON_REST
+    assert abs(forces[last].mean() - 200.0) < PISTON_FORCE * 200.0  # the blobs push it up (+y) with 200 N
+    heavier, _, _ = piston(400.0)
+    assert heavier[-1] < heights[-1] - 0.01  # twice the load packs the pile denser: measured 1.551 vs 1.45 m
+
+
+def test_a_press_squeezes_gish_without_losing_area_or_passing_through_and_it_comes_back_round():
+    text = (SCENES / "press.toml").read_text()
+    sc = parse_scene(text, "press")
+    model, state = build(sc)
+    params = build_params(sc)
+    worst, deepest, shapes = 0.0, 0.0, {}
+    for n in range(params.steps):
+        advance(state, model, params, 1)
+        area, _ = blob_measures(state, model)
+        worst = max(worst, abs(area[0] / model.target_area[0] - 1.0))
+        underside = 1.2 + state.static_pose[1, 1]
+        deepest = max(deepest, -state.pos[:, 1].min(), state.pos[:, 1].max() - underside)
+        if n + 1 in (60, 300):  # before the press comes down (t = 1 s), and 1.5 s after it is gone
+            shapes[n + 1] = np.ptp(state.pos, axis=0)
+    assert worst < PRESSED_AREA
+    assert deepest <= STATIC_PENETRATION
+    assert np.abs(shapes[300] / shapes[60] - 1.0).max() < ROUND_AGAIN
+
+
+def test_a_blob_scaled_from_1_to_2_ends_with_four_times_its_area_and_twice_its_perimeter(tmp_path):
+    text = """[scene]
+duration = 3.0
+gravity = [0.0, 0.0]
+[[blob]]
+name = "cell"
+center = [0.0, 0.0]
+radius = 0.5
+[[schedule]]
+key = "blob.cell.scale"
+at = [[0.0, 1.0], [2.0, 2.0]]
+"""
+    out = tmp_path / "grow.h5"
+    (tmp_path / "grow.toml").write_text(text)
+    assert blobsim("run", tmp_path / "grow.toml", "-o", out, "-q").returncode == 0
+    with h5py.File(out) as f:
+        area = f["observables/area/value"][...][:, 0]
+        pos = f["particles/blobs/position/value"][...]
+    perimeter = [np.hypot(*(np.roll(p, -1, axis=0) - p).T).sum() for p in (pos[0], pos[-1])]
+    assert abs(area[-1] / area[0] - 4.0) < 0.04 and abs(perimeter[1] / perimeter[0] - 2.0) < 0.02
+
+
+def test_a_path_moving_wall_wakes_a_sleeping_blob_it_reaches():
+    text = """[scene]
+duration = 5.0
+[[blob]]
+center = [0.0, 0.3]
+radius = 0.3
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+[[static]]
+kind = "box"
+center = [-2.0, 0.5]
+size = [0.2, 1.0]
+path = [[3.0, 0.0, 0.0, 0.0], [4.0, 1.9, 0.0, 0.0]]
+"""
+    awake = []
+    _, state, _ = run(text, each=lambda n, s: awake.append(int(s.awake[0])))
+    assert awake[150] == 0  # asleep at 2.5 s, before the wall moves
+    assert state.pos[:, 0].min() > -2.0 + 0.1 + 1.9 - STATIC_PENETRATION  # pushed along, never passed through
+    assert state.pos[:, 0].mean() > 0.1
+
+
+@pytest.mark.parametrize("bad, message", [
+    ("velocity = [1.0, 0.0]\nload = 10.0", r"static\[0\].load: a collider moves in one way only"),
+    ("pivot = [0.0, 0.0]", r"static\[0\].pivot: only for a collider that turns"),
+    ("mass = 2.0", r"static\[0\].mass: only for a loaded wall \(give load\)"),
+    ("path = [[0.0, 1.0, 0.0]]", r"static\[0\].path: keyframes are \[t, dx, dy, turn\]"),
+    ("path = [[1.0, 0, 0, 0], [0.5, 0, 0, 0]]", r"static\[0\].path: times must be >= 0 and increasing"),
+])
+def test_bad_motion_keys_are_clear_errors(bad, message):
+    with pytest.raises(SceneError, match=message):
+        scene(f'[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\n'
+              f'normal = [0.0, 1.0]\n{bad}\n')
+
+
+@pytest.mark.parametrize("bad, message", [
+    ('key = "blob.nobody.mass"\nat = [[0.0, 1.0]]', r"schedule\[0\].key: no blob is named 'nobody'"),
+    ('key = "blob.cell.colour"\nat = [[0.0, 1.0]]', r"schedule\[0\].key: KEY must be one of"),
+    ('key = "blob.cell.mass"\nat = [[0.0, -1.0]]', r"schedule\[0\].at\[0\]: mass must be > 0"),
+    ('key = "scene.gravity"\nat = [[0.0, 1.0]]', r"schedule\[0\].at: gravity keyframes are \[t, gx, gy\]"),
+])
+def test_bad_schedules_are_clear_errors(bad, message):
+    with pytest.raises(SceneError, match=message):
+        scene(f'[[blob]]\nname = "cell"\ncenter = [0.0, 1.0]\nradius = 0.5\n[[schedule]]\n{bad}\n')
+
+
+def test_the_walls_are_recorded_and_a_resumed_run_is_bit_identical_mid_motion(tmp_path):
+    whole, first, resumed = tmp_path / "whole.h5", tmp_path / "first.h5", tmp_path / "resumed.h5"
+    press = SCENES / "press.toml"
+    assert blobsim("run", press, "-o", whole, "-q", "--steps", "150").returncode == 0
+    assert blobsim("run", press, "-o", first, "-q", "--steps", "97").returncode == 0  # the press half way down
+    r = blobsim("run", press, "-o", resumed, "-q", "--steps", "150", "--resume", first)
+    assert r.returncode == 0, r.stderr
+    report = compare_files(whole, resumed)
+    assert report.same, report.text()
+    with h5py.File(whole) as f:
+        assert f.attrs["blobsim_format"] == 7
+        position = f["observables/statics/position/value"][...]
+        assert position.shape == (151, 2, 2) and f["observables/statics/force/value"].shape == (151, 2, 2)
+        assert np.allclose(position[:, 1, 1][[0, 60, 120]], [1.3, 1.3, 0.7])  # the press's path, recorded
+        assert f["restart/static_pose"].shape == (2, 6)
