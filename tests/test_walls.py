@@ -198,3 +198,35 @@ def test_the_walls_are_recorded_and_a_resumed_run_is_bit_identical_mid_motion(tm
         assert position.shape == (151, 2, 2) and f["observables/statics/force/value"].shape == (151, 2, 2)
         assert np.allclose(position[:, 1, 1][[0, 60, 120]], [1.3, 1.3, 0.7])  # the press's path, recorded
         assert f["restart/static_pose"].shape == (2, 6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, stop, total", [("piston", 137, 300), ("press", 161, 240), ("conveyor", 77, 200),
+                                               ("drum", 77, 200)])
+def test_each_shipped_moving_scene_resumes_bit_identically_mid_motion(tmp_path, name, stop, total):
+    whole, first = tmp_path / "whole.h5", tmp_path / "first.h5"
+    scene_file = SCENES / f"{name}.toml"
+    assert blobsim("run", scene_file, "-o", whole, "-q", "--steps", total).returncode == 0
+    assert blobsim("run", scene_file, "-o", first, "-q", "--steps", stop).returncode == 0
+    r = blobsim("run", scene_file, "-q", "--steps", total, "--resume", first)
+    assert r.returncode == 0, r.stderr
+    report = compare_files(whole, first)
+    assert report.same and report.frames == total + 1, report.text()
+
+
+@pytest.mark.slow
+def test_a_loaded_wall_on_the_parallel_build_gives_the_same_bits_for_any_thread_count(tmp_path):
+    """40 blobs (the parallel build) under the piston, on 1 and 2 threads, hash seeds apart."""
+    import os
+    text = (SCENES / "piston.toml").read_text().replace("radius = 0.25", "radius = 0.15").replace(
+        "grid = [5, 4]", "grid = [8, 5]").replace("spacing = [0.55, 0.55]", "spacing = [0.34, 0.34]")
+    (tmp_path / "piston40.toml").write_text(text)
+    outputs = []
+    for threads, seed in (("1", "0"), ("2", "12345")):
+        out = tmp_path / f"run{threads}.h5"
+        env = {**os.environ, "NUMBA_NUM_THREADS": threads, "PYTHONHASHSEED": seed}
+        r = blobsim("run", tmp_path / "piston40.toml", "-o", out, "--steps", "150", "-q", env=env)
+        assert r.returncode == 0, r.stderr
+        outputs.append(out)
+    report = compare_files(*outputs)
+    assert report.same, report.text()

@@ -176,6 +176,8 @@ def _advance(steps, state, model, settings, clock):
                 account_contacts(s.position, m.inv_mass, m.walls, s.static_pose, s.touch, s.static_impulse, h)
             if LOADED:
                 finish_loaded_walls(m.walls, s.static_pose, h)
+            if STATICS:
+                t = _lap(clock, LAP_STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)

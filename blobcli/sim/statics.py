@@ -35,8 +35,10 @@ from .ring import crosses_ray
 from .walls import account
 
 SKIN = 1e-6  # m: vertices rest this far from a zero-thickness segment, so their side is known
-# Whether a collider of the scene moves (pipeline.Configuration), bound per scene: this module value is never run.
-MOVING = True
+# Whether a collider of the scene moves, and whether one is a loaded wall (pipeline.Configuration), bound per
+# scene: these module values are never run. (A loaded wall's records, left in every build, cost a one-blob step
+# 4.8 µs of its 11.)
+MOVING = LOADED = True
 
 
 @inline_kernel
@@ -87,9 +89,9 @@ def _surface_velocity(delta, s, x, y, h):
 
 
 @inline_kernel
-def _pushed(i, k, dx, dy, loaded, touch):
-    """Record collider k's push (dx, dy) of vertex i: for its force, and a loaded wall's share."""
-    static_of, static_push, wall_of, wall_push = touch
+def _pushed(i, k, dx, dy, loaded, static_of, static_push, wall_of, wall_push):
+    """Record collider k's push (dx, dy) of vertex i: for its force, and a loaded wall's share. (The arrays
+    come unpacked from `touch` once per kernel.)"""
     account(i, k, dx, dy, static_of, static_push)
     if loaded != 0.0:
         wall_of[i] = k
@@ -119,6 +121,7 @@ def _inside_shape(geom, start, stop, x, y):
 @stage_kernel
 def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material, index,
                    contact_normal, contact_depth, contact_material, touch, h):
+    static_of, static_push, wall_of, wall_push = touch
     # Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
@@ -137,7 +140,7 @@ def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, 
                         contact_normal, contact_depth, contact_material)
                 # held there by static friction (it stays on a flat plane)
                 qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
-                _pushed(i, index[s], qx - x, qy - y, delta[s, 4], touch)
+                _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
                 x, y = qx, qy
         pos[0, i], pos[1, i] = x, y
 
@@ -145,6 +148,7 @@ def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, 
 @stage_kernel
 def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material,
                      index, contact_normal, contact_depth, contact_material, touch, h):
+    static_of, static_push, wall_of, wall_push = touch
     # A zero-thickness wall, solid from both sides. The side a vertex belongs to is the
     # side its substep began on (d0 = n · (x_prev - a)); if its path reaches within SKIN
     # of the line inside the segment's extent, it is put back at distance SKIN.
@@ -187,7 +191,7 @@ def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
             _record(i, side * nx, side * ny, depth, wx, wy, blob_material[blob_of[i]], shape_material[s],
                     contact_normal, contact_depth, contact_material)
             qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
-            _pushed(i, index[s], qx - x, qy - y, delta[s, 4], touch)
+            _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
             x, y = qx, qy
         pos[0, i], pos[1, i] = x, y
 
@@ -195,6 +199,7 @@ def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
 @stage_kernel
 def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material, index,
                     contact_normal, contact_depth, contact_material, touch, h):
+    static_of, static_push, wall_of, wall_push = touch
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
             continue
@@ -218,7 +223,7 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                             contact_depth, contact_material)
                     x, y = _held_inside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                                contact_material, h)
-                    _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
+                    _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
                 continue
             fx, fy = x0 - cx, y0 - cy
             dx, dy = x - x0, y - y0
@@ -241,7 +246,7 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                                 contact_normal, contact_depth, contact_material)
                         x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                                      contact_material, h)
-                        _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
+                        _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
                         continue
             rx, ry = x - cx, y - cy
             dist = math.sqrt(rx * rx + ry * ry)
@@ -257,7 +262,7 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                         contact_normal, contact_depth, contact_material)
                 x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                              contact_material, h)
-                _pushed(i, index[s], x - bx, y - by, delta[s, 4], touch)
+                _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
         pos[0, i], pos[1, i] = x, y
 
 
@@ -288,6 +293,7 @@ def _held_inside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_dept
 @stage_kernel
 def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, shape_offsets, shape_material,
                      index, contact_normal, contact_depth, contact_material, touch, h):
+    static_of, static_push, wall_of, wall_push = touch
     # Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x)/|e|.
     for i in numba.prange(pos.shape[1]):
         if not awake[blob_of[i]]:
@@ -357,7 +363,7 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
                 sx, sy = _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h)
                 if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
                     x, y = sx, sy
-                _pushed(i, index[s], x - bx0, y - by0, delta[s, 4], touch)
+                _pushed(i, index[s], x - bx0, y - by0, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
         pos[0, i], pos[1, i] = x, y
 
 

@@ -37,6 +37,7 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "c_ratio_1x1": 3.0,
     "thread_speedup_2": 1.8,
     "sleeping_over_awake": 0.10,
+    "walls_share_piston": 0.10,  # the piston scene's moving walls and colliders, of its step (issue "Worlds that move")
     "side_by_side_over_alone": 2.0,  # two runs of the 60-blob pile started together, each against its time alone
     "beside_busy_over_alone": 2.5,  # one beside a busy-loop process
 }
@@ -249,6 +250,17 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
     per_step, contacts, (model, _) = _profile(scene_text(blobs, "piled"), "bench-stages", settle_steps, 5)
     return {"blobs": blobs, "ms_per_step": {k: 1e3 * v for k, v in per_step.items()},
             "contacts_per_iteration": contacts, "vertices": model.vertex_count}
+
+
+def measure_walls(settle_steps: int, steps: int) -> dict:
+    """What scenes/piston.toml's colliders cost (stage clock, after settling): the walls stage (moving them)
+    and the collider stage (every collider's contacts, the loaded wall's share of them, the forces), per step."""
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[2] / "scenes" / "piston.toml").read_text()
+    per_step, _, _ = _profile(text, "bench-piston", settle_steps, steps)
+    total = sum(per_step.values())
+    return {"ms_per_step": 1e3 * total, "walls_ms": 1e3 * per_step["walls"], "statics_ms": 1e3 * per_step["statics"],
+            "share": (per_step["walls"] + per_step["statics"]) / total}
 
 
 def measure_sleeping(blobs: int, settle_steps: int, steps: int) -> dict:
@@ -476,6 +488,7 @@ def run_bench(quick: bool = False) -> dict:
     results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
     results["busy"] = measure_busy(60, 200 if quick else 600, 1 if quick else 5)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
+    results["walls"] = measure_walls(60, 20 if quick else 200)
     results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 1500, 5 if quick else 20)
     results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
@@ -552,6 +565,10 @@ def format_bench(r: dict) -> str:
     lines.append(f"piled {st['blobs']} blobs, ms per step by stage: "
                  + ", ".join(f"{k} {v:.2f}" for k, v in st["ms_per_step"].items())
                  + f"; {st['contacts_per_iteration']} of {st['vertices']} vertices in blob contact per iteration")
+    w = r["walls"]
+    lines.append(f"scenes/piston.toml (a loaded piston on 20 blobs): {w['ms_per_step']:.3f} ms per step, of which "
+                 f"moving the walls {w['walls_ms']:.3f} and all colliders' contacts {w['statics_ms']:.3f}: "
+                 f"{100 * w['share']:.1f}% (target <= {100 * t['walls_share_piston']:g}%)")
     sl = r["sleeping"]
     lines.append(f"settled pile of {sl['blobs']} blobs, {sl['settled_s']:g} s after the drop: "
                  f"{100 * sl['asleep']:.0f}% asleep; a step costs {sl['ms_per_step_asleep']:.3f} ms asleep vs "

@@ -10,6 +10,8 @@ not tests: the tests (tests/test_sleep.py) hold smaller cases to tolerances.
 
 from __future__ import annotations
 
+import copy
+
 import argparse
 import time
 from dataclasses import replace
@@ -35,7 +37,7 @@ def last_second(scene, seconds: float) -> dict:
     of blobs asleep at the end and the wall time of that second (s)."""
     from ..sim.pipeline import advance
     model, state, params, per_second = _run(scene, seconds - 1.0)
-    timed = type(state)(*(a.copy() for a in state))  # the last second again, in one compiled call, for the wall time
+    timed = copy.deepcopy(state)  # the last second again, in one compiled call, for the wall time
     t0 = time.perf_counter()
     advance(timed, model, params, per_second)
     wall = time.perf_counter() - t0
