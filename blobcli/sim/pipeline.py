@@ -44,8 +44,9 @@ from .walls import account_contacts, finish_loaded_walls, place_walls, yield_loa
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
 # the stage clock's slots
-(LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE, LAP_STATICS,
- LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) = range(len(STAGES))
+(LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE,
+ LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) \
+    = range(len(STAGES))
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 

@@ -9,6 +9,8 @@ takes the same values as an uninterrupted one. The model stays as the scene buil
     pressure p, scale s:  target_area = p × rest_area × s²; rest edge lengths and perimeter × s
     friction, static_friction, restitution: the blob's material (combined at each contact as before)
     scene.gravity: the step's settings (g, "up", the rest speed of restitution)
+
+A blob whose properties change is woken, every blob when gravity does (a sleeping blob would not feel it).
 """
 
 from __future__ import annotations
@@ -80,4 +82,8 @@ class Schedules:
             return step_settings
         times, gx, gy = self.gravity
         g = np.array([np.interp(t, times, gx), np.interp(t, times, gy)])
+        before = (step - 1) * self.params.dt
+        if g[0] != np.interp(before, times, gx) or g[1] != np.interp(before, times, gy):  # everything is woken
+            state.awake[:] = 1
+            state.still[:] = 0.0
         return settings(m, replace(self.params, gravity=g))

@@ -140,7 +140,8 @@ def _collide_plane(pos, prev, blob_of, awake, blob_material, geom, aabb, delta, 
                         contact_normal, contact_depth, contact_material)
                 # held there by static friction (it stays on a flat plane)
                 qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
-                _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+                _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0,
+                        static_of, static_push, wall_of, wall_push)
                 x, y = qx, qy
         pos[0, i], pos[1, i] = x, y
 
@@ -191,7 +192,8 @@ def _collide_segment(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
             _record(i, side * nx, side * ny, depth, wx, wy, blob_material[blob_of[i]], shape_material[s],
                     contact_normal, contact_depth, contact_material)
             qx, qy = _stuck(i, qx, qy, x0, y0, contact_normal, contact_depth, contact_material, h)
-            _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+            _pushed(i, index[s], qx - x, qy - y, delta[s, 4] if LOADED else 0.0,
+                    static_of, static_push, wall_of, wall_push)
             x, y = qx, qy
         pos[0, i], pos[1, i] = x, y
 
@@ -223,7 +225,8 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                             contact_depth, contact_material)
                     x, y = _held_inside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                                contact_material, h)
-                    _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+                    _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0,
+                            static_of, static_push, wall_of, wall_push)
                 continue
             fx, fy = x0 - cx, y0 - cy
             dx, dy = x - x0, y - y0
@@ -246,7 +249,8 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                                 contact_normal, contact_depth, contact_material)
                         x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                                      contact_material, h)
-                        _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+                        _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0,
+                                static_of, static_push, wall_of, wall_push)
                         continue
             rx, ry = x - cx, y - cy
             dist = math.sqrt(rx * rx + ry * ry)
@@ -262,7 +266,8 @@ def _collide_circle(pos, prev, blob_of, awake, blob_material, geom, aabb, delta,
                         contact_normal, contact_depth, contact_material)
                 x, y = _stuck_outside_circle(i, x, y, x0, y0, cx, cy, r, contact_normal, contact_depth,
                                              contact_material, h)
-                _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+                _pushed(i, index[s], x - bx, y - by, delta[s, 4] if LOADED else 0.0,
+                        static_of, static_push, wall_of, wall_push)
         pos[0, i], pos[1, i] = x, y
 
 
@@ -363,7 +368,8 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
                 sx, sy = _stuck(i, x, y, x0, y0, contact_normal, contact_depth, contact_material, h)
                 if not _inside_shape(geom, shape_offsets[s], shape_offsets[s + 1], sx, sy):
                     x, y = sx, sy
-                _pushed(i, index[s], x - bx0, y - by0, delta[s, 4] if LOADED else 0.0, static_of, static_push, wall_of, wall_push)
+                _pushed(i, index[s], x - bx0, y - by0, delta[s, 4] if LOADED else 0.0,
+                        static_of, static_push, wall_of, wall_push)
         pos[0, i], pos[1, i] = x, y
 
 

@@ -34,8 +34,6 @@ vertex order (the same bits for any thread count).
 
 import math
 
-import numpy as np
-
 from ..jit import inline_kernel, kernel
 
 FIXED, VELOCITY, PATH, LOADED = range(4)  # model.Walls.motion
@@ -53,7 +51,8 @@ def _pose_at(walls, k, t):
     for j in range(o + 1, e):
         if t < path[j, 0]:
             f = (t - path[j - 1, 0]) / (path[j, 0] - path[j - 1, 0])
-            return (path[j - 1, 1] + f * (path[j, 1] - path[j - 1, 1]), path[j - 1, 2] + f * (path[j, 2] - path[j - 1, 2]),
+            return (path[j - 1, 1] + f * (path[j, 1] - path[j - 1, 1]),
+                    path[j - 1, 2] + f * (path[j, 2] - path[j - 1, 2]),
                     path[j - 1, 3] + f * (path[j, 3] - path[j - 1, 3]))
     return path[e - 1, 1], path[e - 1, 2], path[e - 1, 3]
 

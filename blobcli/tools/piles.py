@@ -10,9 +10,8 @@ not tests: the tests (tests/test_sleep.py) hold smaller cases to tolerances.
 
 from __future__ import annotations
 
-import copy
-
 import argparse
+import copy
 import time
 from dataclasses import replace
 from pathlib import Path
