@@ -265,3 +265,24 @@ at = [[1.0, 0.0, 0.0], [1.0001, 0.0, -9.81]]
     # symplectic Euler: s = g h² N (N + 1) / 2 (4.763 m; g t² / 2 = 4.905)
     n, h = 59 * 4, 1.0 / 240.0
     assert abs((5.0 - ys[-1]) - 9.81 * h * h * n * (n + 1) / 2) < 1e-9
+
+
+def test_a_recording_draws_a_moving_collider_where_it_is_and_plots_a_loaded_walls_push(tmp_path):
+    import rerun.chunk as rc
+    text = (SCENES / "piston.toml").read_text().replace("duration = 8.0", "duration = 3.0")
+    (tmp_path / "p.toml").write_text(text)
+    r = blobsim("run", tmp_path / "p.toml", "-o", tmp_path / "p.h5", "--rerun", tmp_path / "p.rrd", "-q")
+    assert r.returncode == 0, r.stderr
+    piston_rows, push = 0, {}
+    for chunk in rc.RrdReader(str(tmp_path / "p.rrd")).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == "/world/statics/3":
+            assert not chunk.is_static  # the piston moves: drawn frame by frame
+            piston_rows += batch.num_rows
+        elif chunk.entity_path == "/series/statics/3/force" and not chunk.is_static:
+            push.update(zip(batch.column("step").to_pylist(), batch.column("Scalars:scalars").to_pylist()))
+        elif chunk.entity_path == "/world/statics/0":
+            assert chunk.is_static  # the floor does not
+    assert piston_rows == 181
+    last = [v[0] for step, v in sorted(push.items())[-60:]]
+    assert abs(np.mean(last) - 200.0) < PISTON_FORCE * 200.0  # the blobs push back with the load

@@ -579,8 +579,7 @@ def _resume_problems(f, path, scene, params) -> list[str]:
         complete = bool(f.attrs["complete"])
         last = int(p.attrs["steps"]) if complete else int(f[RESTART].attrs["step"])
         version = int(np.asarray(f.attrs["blobsim_format"]).flat[0])
-        moving = [i for i, st in enumerate(scene.statics)
-                  if st.velocity is not None or st.angular_velocity is not None or st.path or st.load is not None]
+        moving = [i for i, st in enumerate(scene.statics) if st.moves]
         if version < 7 and moving:
             problems.append(f"{path}: blobsim format {version} keeps no collider poses; static[{moving[0]}] moves")
         elif version >= 7 and f[f"{RESTART}/static_pose"].shape[0] != len(scene.statics):

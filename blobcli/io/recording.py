@@ -7,7 +7,8 @@ Layout of a recording (timelines `step`, a sequence, and `sim_time`, a duration 
     world/vertices           Points2D: every vertex
     world/statics/<i>        the colliders: logged once as static data, or, for one that moves, frame by frame
                              where it is (its outline turned by its recorded angle about its recorded pivot)
-    series/statics/<i>/force Scalars: a loaded wall's force from the blobs along its load direction, N
+    series/statics/<i>/force Scalars: how hard the blobs push back against a loaded wall's load, N (-f · e: the
+                             load itself once the wall is at rest)
     series/area_error        Scalars: one series per blob, (|A| - A_target) / A_target
     series/kinetic_energy    Scalars: one series per blob, J
     series/summary/area_error/{max,mean}   over the blobs
@@ -80,11 +81,10 @@ class RerunRecorder:
         pad = 0.1 * max(hi[0] - lo[0], hi[1] - lo[1], 1.0)
         lo, hi = lo - pad, hi + pad
         legend = rrb.PlotLegend(visible=len(self.offsets) - 1 <= LEGEND_BLOBS)
-        self.moving = [i for i, s in enumerate(scene.statics) if s.velocity is not None or s.path is not None
-                       or s.angular_velocity is not None or s.load is not None]
+        self.moving = [i for i, s in enumerate(scene.statics) if s.moves]
         self.loaded = {i: np.array(s.load_direction) / np.hypot(*s.load_direction)
                        for i, s in enumerate(scene.statics) if s.load is not None}
-        forces = [rrb.TimeSeriesView(origin="series/statics", name="force on loaded walls (N)")] if self.loaded else []
+        forces = [rrb.TimeSeriesView(origin="series/statics", name="push against the load (N)")] if self.loaded else []
         blueprint = rrb.Blueprint(rrb.Horizontal(
             rrb.Spatial2DView(origin="world", name=scene.name,  # bounds in the flipped (drawn) frame
                               visual_bounds=rrb.VisualBounds2D(x_range=[lo[0], hi[0]], y_range=[-hi[1], -lo[1]])),
@@ -168,7 +168,7 @@ class RerunRecorder:
                 strips=strips, colors=np.tile(np.uint8([90, 90, 90, 255]), (frames, 1)),
                 radii=np.full(frames, 0.01, np.float32)).partition([1] * frames))
         for i, e in self.loaded.items() if recorded else ():
-            force = np.array([frame[2][i] @ e for frame in self._statics])
+            force = np.array([-(frame[2][i] @ e) for frame in self._statics])
             self.rec.send_columns(f"series/statics/{i}/force", indexes=times, columns=rr.Scalars.columns(scalars=force))
         self.frames += frames
         self._steps, self._pos, self._area_error, self._kinetic, self._awake = [], [], [], [], []

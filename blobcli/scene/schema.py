@@ -211,6 +211,12 @@ class StaticDef:
                                 "vec2", nonzero_vec)
     mass: float = key(1.0, "kg", "a loaded wall's mass", "float", positive)
 
+    @property
+    def moves(self) -> bool:
+        """Whether it moves, in any of the three ways."""
+        return self.velocity is not None or self.angular_velocity is not None or self.path is not None \
+            or self.load is not None
+
 
 @dataclass(frozen=True)
 class ScheduleDef:

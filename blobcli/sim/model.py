@@ -16,7 +16,7 @@ import numpy as np
 
 from ..colliders import COLLIDERS, SOLVERS, default_pivot
 from ..geometry import ring_next, signed_area
-from ..scene.schema import BlobDef, Scene, StaticDef
+from ..scene.schema import BlobDef, Scene, StaticDef, expanded_names
 from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
 from .sleep import begin_still
@@ -250,24 +250,21 @@ def build_params(scene: Scene) -> Params:
 
 def build(scene: Scene) -> tuple[Model, State]:
     """Model and initial state of a validated scene (grids expanded)."""
-    names, rings, velocities, per_blob = [], [], [], []
-    for i, b in enumerate(scene.blobs):
+    rings, velocities, per_blob = [], [], []
+    for b in scene.blobs:
         base = blob_points(b)
         nx, ny = b.grid
-        name = b.name or f"blob{i}"
-        if (nx, ny) == (1, 1):
-            shifts, copies = np.zeros((1, 2)), [name]
-        else:
-            ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-            shifts = np.stack([ix.ravel() * b.spacing[0], iy.ravel() * b.spacing[1]], axis=1)
-            copies = [f"{name}_{x}_{y}" for x, y in zip(ix.ravel(), iy.ravel())]
-        names += copies
+        # the copies in the order of expanded_names: x-major
+        ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+        shifts = np.stack([ix.ravel() * (b.spacing or (0.0, 0.0))[0], iy.ravel() * (b.spacing or (0.0, 0.0))[1]],
+                          axis=1).astype(np.float64)
+        copies = nx * ny
         rings.append((base[None, :, :] + shifts[:, None, :]).reshape(-1, 2))
-        counts = np.full(len(copies), len(base))
+        counts = np.full(copies, len(base))
         # v = v_0 + ω ẑ × (x - c), c the centre of mass (the vertex average: vertex masses are equal)
         r = base - base.mean(axis=0)
         spin = np.array(b.velocity) + b.angular_velocity * np.stack([-r[:, 1], r[:, 0]], axis=1)
-        velocities.append(np.tile(spin, (len(copies), 1)))
+        velocities.append(np.tile(spin, (copies, 1)))
         area = signed_area(base)
         per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
                          (b.static_friction, b.friction, b.restitution), b.area_compliance, b.gas_pressure,
@@ -292,7 +289,7 @@ def build(scene: Scene) -> tuple[Model, State]:
     statics = build_statics(scene.statics)
     walls = build_walls(scene.statics)
     springs = internal_springs(pos, offsets)
-    model = Model(names=tuple(names), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
+    model = Model(names=tuple(expanded_names(scene.blobs)), offsets=offsets, blob_of=blob_of, inv_mass=inv_mass,
                   rest_length=rest_length, rest_perimeter=np.add.reduceat(rest_length, offsets[:-1]),
                   rest_area=rest_area, target_area=pressure * rest_area,
                   compliance=compliance, material=material, mass=mass,
@@ -382,7 +379,7 @@ def build_walls(statics: tuple[StaticDef, ...]) -> Walls:
         elif s.path is not None:
             motion[k] = PATH
             path += [(t, dx, dy, math.radians(turn)) for t, dx, dy, turn in s.path]
-        elif s.velocity is not None or s.angular_velocity is not None:
+        elif s.moves:
             motion[k], drive[k] = VELOCITY, (*(s.velocity or (0.0, 0.0)), s.angular_velocity or 0.0)
         path_offsets[k + 1] = len(path)
     return Walls(motion=motion, pivot=pivot, drive=drive, mass=mass, path_offsets=path_offsets,
