@@ -317,7 +317,8 @@ def build(scene: Scene) -> tuple[Model, State]:
                   static_pose=np.zeros((len(scene.statics), WALL_POSE_COLUMNS)),
                   static_impulse=np.zeros((len(scene.statics), 3)), placed=initial_placed(statics),
                   touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))))
-    place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
+    if model.moving:  # (a kernel: compiled only for scenes that need it, so others print their first line at once)
+        place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
     begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)
     return model, state
 
