@@ -71,12 +71,18 @@ blob = st.fixed_dictionaries({"center": st.lists(st.floats(-5, 5), min_size=2, m
                               "radius": st.floats(1e-7, 2.0), "vertices": st.integers(2, 40)}) | table(TABLES["blob"])
 static = st.fixed_dictionaries({"kind": st.sampled_from(["plane", "segment", "box", "circle", "polygon", "cone"]),
                                 "point": st.just([0.0, 0.0]), "normal": st.just([0.0, 1.0])}) | table(TABLES["static"])
+schedule = st.fixed_dictionaries({"key": st.sampled_from(["blob.blob0.mass", "blob.blob0.scale", "blob.blob*.friction",
+                                                          "scene.gravity", "blob.nobody.mass", "blob.blob0.colour",
+                                                          "scene.dt"]),
+                                  "at": st.lists(st.lists(numbers, min_size=2, max_size=3), min_size=1, max_size=4)}) \
+    | table(TABLES["schedule"])
 scenes = st.fixed_dictionaries({}, optional={
     "scene": table(TABLES["scene"], ["durtion"]) | st.fixed_dictionaries({"steps": st.integers(-2, 30),
                                                                           "substeps": st.integers(0, 8)}),
     "output": table(TABLES["output"]),
     "blob": st.lists(blob, max_size=3) | values,
     "static": st.lists(static, max_size=2),
+    "schedule": st.lists(schedule, max_size=2),
     "bogus": values,
 })
 
@@ -87,7 +93,7 @@ def scene_text(doc: dict) -> str:
         if name in doc:
             lines.append(f"[{name}]")
             lines += [f"{k} = {toml_value(v)}" for k, v in doc[name].items()]
-    for name in ("blob", "static"):
+    for name in ("blob", "static", "schedule"):
         items = doc.get(name, [])
         if not isinstance(items, list) or not all(isinstance(x, dict) for x in items):
             lines.insert(0, f"{name} = {toml_value(items)}")
