@@ -16,6 +16,8 @@ from .ring import ring_means
 
 REST_SPEED_FACTOR = 2.0  # no bounce below this × |g| h of approach speed (kills contact jitter) ...
 MIN_REST_SPEED = 0.01  # m/s ... nor below this (without gravity, jitter from pushing overlaps apart)
+IMPACT_DEPTH = 0.1  # of a blob's radius (rest perimeter / 2π): a static push this deep in one substep is an impact
+#                     that stops the whole blob (`stop_impacts`)
 NO_BOUNCE = -math.inf  # leave energy of a contact that has not bounced yet (see `bounce`)
 # Whether a collider of the scene moves (pipeline.Configuration), bound per scene: this module value is never run.
 MOVING = True
@@ -90,6 +92,64 @@ def predict(pos, prev, vel, lam, contact_depth, offsets, awake, predicted, gx, g
             dy = vel[1, i] - vy - w * rx
             pos[0, i] = cx + h * vx + cos * rx - sin * ry + h * dx
             pos[1, i] = cy + h * vy + sin * rx + cos * ry + h * dy
+
+
+@inline_kernel
+def _impact(offsets, b, rest_perimeter, contact_normal, contact_depth):
+    """Blob b's deepest static push this substep, if deeper than IMPACT_DEPTH × its radius (else 0), and
+    the depth-weighted normal n̄ of its pushes (as restitution's)."""
+    deepest = nx = ny = 0.0
+    for i in range(offsets[b], offsets[b + 1]):
+        D = contact_depth[i]
+        if D > 0.0:
+            deepest = max(deepest, D)
+            nx += D * contact_normal[0, i]
+            ny += D * contact_normal[1, i]
+    length = math.sqrt(nx * nx + ny * ny)
+    if deepest <= IMPACT_DEPTH * rest_perimeter[b] / (2.0 * math.pi) or length == 0.0:
+        return 0.0, 0.0, 0.0
+    return deepest, nx / length, ny / length
+
+
+@stage_kernel
+def stop_impacts(pos, offsets, awake, rest_perimeter, contact_normal, contact_depth):
+    """A fast impact stops the whole blob, not only the vertices that reached the collider.
+
+    At 100 m/s and h = 1/240 s a blob moves 0.42 m in a substep: the collider stage stops its front
+    vertices at the surface while the rest go on, through them, and the ring folds across itself (no
+    constraint can unfold a crossed ring: its signed area no longer measures it). So where a blob's
+    deepest static push D this substep exceeds IMPACT_DEPTH × its radius, its vertices the colliders did
+    not push move back along that push's normal n by D too, and after the velocity update no vertex of it
+    keeps approaching along n (`stop_impact_velocities`): the blob stops where its front met the surface,
+    as a rigid body would, and bounces as restitution says (from its approach speed before the
+    constraints). Only motion toward the surface is taken: energy is lost, never made. Slower impacts (a
+    0.5 m blob dropped 1 m at the defaults pushes 18 mm a substep, against 50 mm) are not touched."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
+        deepest, nx, ny = _impact(offsets, b, rest_perimeter, contact_normal, contact_depth)
+        if deepest == 0.0:
+            continue
+        for i in range(offsets[b], offsets[b + 1]):
+            if contact_depth[i] == 0.0:
+                pos[0, i] += deepest * nx
+                pos[1, i] += deepest * ny
+
+
+@stage_kernel
+def stop_impact_velocities(vel, offsets, awake, rest_perimeter, contact_normal, contact_depth):
+    """After a fast impact (`stop_impacts`), no vertex of the blob approaches the surface along n."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
+        deepest, nx, ny = _impact(offsets, b, rest_perimeter, contact_normal, contact_depth)
+        if deepest == 0.0:
+            continue
+        for i in range(offsets[b], offsets[b + 1]):
+            vn = vel[0, i] * nx + vel[1, i] * ny
+            if vn < 0.0:
+                vel[0, i] -= vn * nx
+                vel[1, i] -= vn * ny
 
 
 @stage_kernel

@@ -33,7 +33,16 @@ from .collide import (
     release_sticks,
     resolve_blob_contacts,
 )
-from .integrate import MIN_REST_SPEED, REST_SPEED_FACTOR, damp_deformation, predict, restitution, update_velocities
+from .integrate import (
+    MIN_REST_SPEED,
+    REST_SPEED_FACTOR,
+    damp_deformation,
+    predict,
+    restitution,
+    stop_impact_velocities,
+    stop_impacts,
+    update_velocities,
+)
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
@@ -112,8 +121,6 @@ def _advance(steps, state, model, settings, clock):
         if awake_count == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
             s.steps_done[0] += 1
             continue
-        if STATICS:
-            s.static_impulse[:] = 0.0  # the impulses of this step, recorded with its frame
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
         for sub in range(c.substeps):
             if MOVING:  # colliders to where they are at the substep's end; those near sleeping blobs wake them
@@ -172,16 +179,19 @@ def _advance(steps, state, model, settings, clock):
                                     s.contact_normal, s.contact_depth, s.contact_material, s.touch, h)
                     if LOADED:  # each loaded wall takes its share of its pushes (momentum kept)
                         yield_loaded_walls(s.position, m.inv_mass, m.walls, s.static_pose, m.statics, s.placed, s.touch)
+                    if it == 0:  # a fast impact stops the whole blob, so that its ring does not fold across itself
+                        stop_impacts(s.position, m.offsets, s.awake, m.rest_perimeter, s.contact_normal,
+                                     s.contact_depth)
                     t = _lap(clock, LAP_STATICS, t)
-            if STATICS:  # the pushes as impulses on the colliders
-                account_contacts(s.position, m.inv_mass, m.walls, s.static_pose, s.touch, s.static_impulse, h)
             if LOADED:
                 finish_loaded_walls(m.walls, s.static_pose, h)
-            if STATICS:
                 t = _lap(clock, LAP_STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)
+            if STATICS:
+                stop_impact_velocities(s.velocity, m.offsets, s.awake, m.rest_perimeter, s.contact_normal,
+                                       s.contact_depth)
             t = _lap(clock, LAP_VELOCITIES, t)
             if STATICS:  # leave statics at e × impact speed, never faster
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
@@ -202,6 +212,9 @@ def _advance(steps, state, model, settings, clock):
                                        s.contact_material, s.c_edge, s.awake, s.still, s.still_center,
                                        s.still_angle, c.sleep_speed, c.time_to_sleep, c.dt)
             t = _lap(clock, LAP_SLEEP, t)
+        if STATICS:  # the step's pushes as impulses on the colliders
+            account_contacts(s.position, m.inv_mass, m.walls, s.static_pose, s.touch, s.static_impulse, h)
+            t = _lap(clock, LAP_STATICS, t)
         s.steps_done[0] += 1
         bad = first_runaway(s.position, RUNAWAY)
         if bad >= 0:

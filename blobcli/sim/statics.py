@@ -346,7 +346,7 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
             if inside:
                 # Began inside (spawned there, pushed in by another stage), or still inside after
                 # the swept projection: out to the nearest boundary point.
-                best_d2, qx, qy = math.inf, x, y
+                best_d2, qx, qy, face = math.inf, x, y, -1
                 for k in range(shape_offsets[s], shape_offsets[s + 1]):
                     ax, ay, bx, by = geom[k, 0], geom[k, 1], geom[k, 2], geom[k, 3]
                     ex, ey = bx - ax, by - ay
@@ -354,10 +354,18 @@ def _collide_polygon(pos, prev, blob_of, awake, blob_material, geom, aabb, delta
                     cx, cy = ax + u * ex, ay + u * ey
                     d2 = (cx - x) ** 2 + (cy - y) ** 2
                     if d2 < best_d2:
-                        best_d2, qx, qy = d2, cx, cy
+                        best_d2, qx, qy, face = d2, cx, cy, k if 0.0 < u < 1.0 else -1
                 depth = math.sqrt(best_d2)
                 if depth > 0.0:
-                    nx, ny = (qx - x) / depth, (qy - y) / depth
+                    # Out along the nearest face's normal; (q - x) / depth only at a corner: for a vertex
+                    # left on a face by the swept projection, depth is round-off and (q - x) points anywhere
+                    # (a box's side face gave n = (0, ±1), which the velocity update then clamped along).
+                    if face >= 0:
+                        ex, ey = geom[face, 2] - geom[face, 0], geom[face, 3] - geom[face, 1]
+                        length = math.sqrt(ex * ex + ey * ey)
+                        nx, ny = ey / length, -ex / length
+                    else:
+                        nx, ny = (qx - x) / depth, (qy - y) / depth
                     x, y = qx, qy
                     if MOVING:
                         wx, wy = _surface_velocity(delta, s, x, y, h)

@@ -26,10 +26,10 @@ the inelastic two-body split of PBD (a light wall yields, a heavy one barely), n
 the substep V = (s - s_start) / h. At rest the load and the blobs' pushes balance: the impulses the
 blobs give it over a step are F dt, which is what `account_contacts` records.
 
-Forces: the kernels record for each vertex the push Δx each collider gave it this substep (up to two
+Forces: the kernels record for each vertex the pushes Δx each collider gave it over the step (up to two
 colliders a vertex; a third shares the second's record); `account_contacts` turns them into the impulses
--m Δx / h the blobs exert on each collider, and their torques about its pivot, summed over the step in
-vertex order (the same bits for any thread count).
+-m Σ Δx / h the blobs exert on each collider, and their torques about its pivot, once a step, in vertex
+order (the same bits for any thread count).
 """
 
 import math
@@ -204,9 +204,12 @@ def account(i, k, dx, dy, static_of, static_push):
 
 @kernel
 def account_contacts(pos, inv_mass, walls, pose, touch, impulse, h):
-    """Add this substep's impulses of the blobs on each collider, -m Δx / h (N s), and their moments about
-    its pivot where it is now (N m s), to impulse[k] = (Jx, Jy, L); clear the vertices' records."""
+    """The impulses of the blobs on each collider over the step, -m Σ Δx / h (N s: the pushes of all its
+    substeps, each of length h), and their moments about its pivot where it is at the step's end (N m s),
+    as impulse[k] = (Jx, Jy, L); clear the vertices' records. Once a step: a serial pass over the vertices
+    (in vertex order, the same bits for any thread count) every substep cost 1,000 blobs apart 5%."""
     static_of, static_push, _, _ = touch
+    impulse[:] = 0.0
     for i in range(pos.shape[1]):
         for slot in range(2):
             k = static_of[slot, i]
