@@ -127,6 +127,8 @@ class SceneSettings:
     time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps "
                                "(at least 0.1 s: a shorter rest is a blob at the top of a bounce)", "float",
                                between(0.1, 1e9))
+    seed: int = key(0, "", "seed of the random placement of blobs with `count`: the same seed, the same scene",
+                    "int", between(0, 2 ** 63 - 1))
 
 
 @dataclass(frozen=True)
@@ -164,6 +166,15 @@ class BlobDef:
                              "impact speed, never faster (rebound about e² of the drop)", "float", unit_interval)
     grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", between(1, MAX_BLOBS))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
+    count: int = key(1, "", "place this many copies at random, without overlap, in `region` (from [scene] seed; "
+                     "instead of grid and center); copies get _<k>", "int", between(1, MAX_BLOBS))
+    region: tuple | None = key(None, "m", "with count: [xmin, ymin, xmax, ymax], where the copies' bounding discs "
+                               "must lie", "box")
+
+    @property
+    def copies(self) -> int:
+        """How many blobs this table makes: its grid's, or its count."""
+        return self.grid[0] * self.grid[1] * self.count
 
 
 @dataclass(frozen=True)
@@ -265,11 +276,11 @@ class Scene:
 
     @property
     def blob_count(self) -> int:
-        return sum(b.grid[0] * b.grid[1] for b in self.blobs)
+        return sum(b.copies for b in self.blobs)
 
     @property
     def vertex_count(self) -> int:
-        return sum(b.grid[0] * b.grid[1] * blob_vertex_count(b) for b in self.blobs)
+        return sum(b.copies * blob_vertex_count(b) for b in self.blobs)
 
 
 def blob_vertex_count(b: BlobDef) -> int:
@@ -377,6 +388,14 @@ def _coerce(kind: str, v, path, problems: _Problems, unit: str = ""):
         if unit == "m" and max(abs(float(x)) for x in v) > MAX_COORDINATE:
             return bad(f"must be within ±{MAX_COORDINATE:g} m (positions beyond stop a run)")
         return (float(v[0]), float(v[1]))
+    if kind == "box":  # [xmin, ymin, xmax, ymax]
+        if not isinstance(v, list) or len(v) != 4 or not all(_number(x) for x in v):
+            return bad("must be a list of 4 numbers [xmin, ymin, xmax, ymax]")
+        if not all(_finite(x) for x in v) or max(abs(float(x)) for x in v) > MAX_COORDINATE:
+            return bad(f"must be finite and within ±{MAX_COORDINATE:g} m")
+        if not (v[0] < v[2] and v[1] < v[3]):
+            return bad("needs xmin < xmax and ymin < ymax")
+        return tuple(float(x) for x in v)
     if kind == "keyframes":  # [[t, values...], ...]: times in s, increasing
         if not isinstance(v, list) or not v:
             return bad("must be a list of keyframes [t, ...]")
@@ -466,7 +485,16 @@ def _check_polygon(points, path, problems: _Problems):
 
 
 def _check_blob(b: BlobDef, path, problems: _Problems):
-    ring = (b.center, b.radius)
+    ring = (b.center if b.count == 1 or b.points is not None else (0.0, 0.0), b.radius)  # count: no centre
+    if b.count > 1:
+        if b.region is None:
+            problems.add(path + ("region",), "required with count", show_got=False, line_path=path + ("count",))
+        for name in ("grid", "center"):
+            if getattr(b, name) != BlobDef.__dataclass_fields__[name].default:
+                problems.add(path + (name,), "not with count (its copies are placed at random in region)",
+                             getattr(b, name))
+    elif b.region is not None:
+        problems.add(path + ("region",), "only with count > 1", b.region)
     if b.points is not None and any(x is not None for x in ring):
         problems.add(path, "give either center + radius (+ vertices) or points, not both", show_got=False)
     elif b.points is None and None in ring:
@@ -481,7 +509,7 @@ def _check_blob(b: BlobDef, path, problems: _Problems):
     elif b.spacing is not None and any(n > 1 and d == 0 for n, d in zip(b.grid, b.spacing)):
         problems.add(path + ("spacing",), "must be > 0 along an axis with more than one copy", b.spacing)
     elif b.spacing is not None:
-        reach = max(abs(c) for c in (b.center or ())) + (b.radius or 0.0) if b.points is None else \
+        reach = max(abs(c) for c in (b.center or (0.0, 0.0))) + (b.radius or 0.0) if b.points is None else \
             max(abs(c) for p in b.points for c in p)
         reach += max((n - 1) * d for n, d in zip(b.grid, b.spacing))
         if reach > MAX_COORDINATE:
@@ -603,6 +631,12 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), tuple(schedule_defs), source, text)
     if not problems.items:
         _check_size(scene, problems)
+    if not problems.items and any(b.count > 1 for b in blob_defs):
+        from .placement import PlacementError, random_centres
+        try:
+            random_centres(scene)
+        except PlacementError as e:
+            problems.add(("blob", e.table, "count"), str(e), blob_defs[e.table].count)
     if problems.items:
         raise SceneError(problems.items)
     return scene
@@ -614,7 +648,10 @@ def expanded_names(blobs) -> list[str]:
     for i, b in enumerate(blobs):
         name = b.name or f"blob{i}"
         nx, ny = b.grid
-        out += [name] if (nx, ny) == (1, 1) else [f"{name}_{x}_{y}" for x in range(nx) for y in range(ny)]
+        if b.count > 1:
+            out += [f"{name}_{k}" for k in range(b.count)]
+        else:
+            out += [name] if (nx, ny) == (1, 1) else [f"{name}_{x}_{y}" for x in range(nx) for y in range(ny)]
     return out
 
 

@@ -20,9 +20,12 @@ SMALL = 20.0  # a blob whose radius is under SMALL × g h² (how far gravity mov
 
 
 def _rings(scene: Scene):
-    """(name, index in scene.blobs, polygon (n, 2)) of every blob after grids."""
+    """(name, index in scene.blobs, polygon (n, 2)) of every blob after grids; not the random copies of
+    a table with count, which are placed clear of every blob and collider (scene/placement.py)."""
     from ..sim.model import blob_points  # numpy only
     for i, b in enumerate(scene.blobs):
+        if b.count > 1:
+            continue
         base = blob_points(b)
         name = b.name or f"blob{i}"
         for ix in range(b.grid[0]):

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..colliders import COLLIDERS, SOLVERS, default_pivot
 from ..geometry import ring_next, signed_area
+from ..scene.placement import random_centres, ring_at_origin
 from ..scene.schema import BlobDef, Scene, StaticDef, expanded_names
 from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
@@ -236,7 +237,8 @@ def blob_points(b: BlobDef) -> np.ndarray:
     if b.points is not None:
         return np.array(b.points, dtype=np.float64)
     theta = 2.0 * np.pi * np.arange(b.vertices) / b.vertices
-    return np.stack([b.center[0] + b.radius * np.cos(theta), b.center[1] + b.radius * np.sin(theta)], axis=1)
+    cx, cy = b.center or (0.0, 0.0)  # no centre: a blob with count, placed at random
+    return np.stack([cx + b.radius * np.cos(theta), cy + b.radius * np.sin(theta)], axis=1)
 
 
 def build_params(scene: Scene) -> Params:
@@ -249,16 +251,21 @@ def build_params(scene: Scene) -> Params:
 
 
 def build(scene: Scene) -> tuple[Model, State]:
-    """Model and initial state of a validated scene (grids expanded)."""
+    """Model and initial state of a validated scene (grids and random copies expanded)."""
     rings, velocities, per_blob = [], [], []
-    for b in scene.blobs:
-        base = blob_points(b)
-        nx, ny = b.grid
-        # the copies in the order of expanded_names: x-major
-        ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-        shifts = np.stack([ix.ravel() * (b.spacing or (0.0, 0.0))[0], iy.ravel() * (b.spacing or (0.0, 0.0))[1]],
-                          axis=1).astype(np.float64)
-        copies = nx * ny
+    placed = random_centres(scene) if any(b.count > 1 for b in scene.blobs) else {}
+    for i, b in enumerate(scene.blobs):
+        if i in placed:  # copies at random (scene/placement.py), in the order of expanded_names
+            base = ring_at_origin(b)
+            shifts = placed[i]
+        else:
+            base = blob_points(b)
+            nx, ny = b.grid
+            # the copies in the order of expanded_names: x-major
+            ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+            shifts = np.stack([ix.ravel() * (b.spacing or (0.0, 0.0))[0], iy.ravel() * (b.spacing or (0.0, 0.0))[1]],
+                              axis=1).astype(np.float64)
+        copies = len(shifts)
         rings.append((base[None, :, :] + shifts[:, None, :]).reshape(-1, 2))
         counts = np.full(copies, len(base))
         # v = v_0 + ω ẑ × (x - c), c the centre of mass (the vertex average: vertex masses are equal)

@@ -1,0 +1,95 @@
+"""Random starts: where the copies of a `[[blob]]` with `count` go.
+
+Random sequential addition, the way packings of discs are started (and the O'Hern group's
+deformable-polygon code starts its cells): each copy's centre is drawn uniformly from the
+positions where its bounding disc (the vertex farthest from the ring's vertex average) lies
+inside `region`, and kept if that disc overlaps no disc placed before it (every other blob of
+the scene, grids and single blobs included, and the copies already placed) and none of its
+vertices, nor its centre, lies inside a collider, nor any segment collider passes through its
+disc. Copies are placed table by table, in scene order; a copy that finds no place in
+MAX_TRIES draws stops the placement with an error that says how many fitted.
+
+The draws come from numpy's PCG64 generator seeded with `[scene] seed`: the same seed, the same
+scene (on any machine: the generator's stream is fixed by numpy's policy for `default_rng`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MAX_TRIES = 10_000  # draws for one copy before the placement gives up
+
+
+class PlacementError(ValueError):
+    """A copy of blob table `table` found no place: `placed` of its `count` fitted."""
+
+    def __init__(self, table: int, placed: int, count: int, radius: float):
+        super().__init__(f"only {placed} of {count} copies (bounding radius {radius:.4g} m) fitted in region "
+                         f"without overlap after {MAX_TRIES:,} tries for the next: enlarge region or lower count")
+        self.table, self.placed = table, placed
+
+
+def ring_at_origin(b) -> np.ndarray:
+    """The blob's ring with its vertex average at the origin."""
+    from ..sim.model import blob_points
+    ring = blob_points(b)
+    return ring - ring.mean(axis=0)
+
+
+def _blocked_by_statics(ring: np.ndarray, centre: np.ndarray, radius: float, statics) -> bool:
+    from ..colliders import COLLIDERS
+    points = np.vstack([ring + centre, centre[None, :]])
+    for s in statics:
+        if s.kind == "segment":
+            a, b = np.array(s.a), np.array(s.b)
+            ab = b - a
+            t = np.clip(np.dot(centre - a, ab) / np.dot(ab, ab), 0.0, 1.0)
+            if np.hypot(*(a + t * ab - centre)) < radius:
+                return True
+        elif np.any(COLLIDERS[s.kind].depth(points, s) > 0.0):
+            return True
+    return False
+
+
+def random_centres(scene) -> dict[int, np.ndarray]:
+    """{blob table index: (count, 2) centres} for every table with count > 1, in scene order."""
+    from ..sim.model import blob_points
+    discs = []  # (x, y, r) of every blob placed or fixed
+    for b in scene.blobs:
+        if b.count > 1:
+            continue
+        ring = blob_points(b)
+        centre = ring.mean(axis=0)
+        r = float(np.hypot(*(ring - centre).T).max())
+        nx, ny = b.grid
+        for ix in range(nx):
+            for iy in range(ny):
+                shift = np.array([ix, iy]) * np.array(b.spacing or (0.0, 0.0))
+                discs.append((*(centre + shift), r))
+    placed = np.array(discs, dtype=np.float64).reshape(-1, 3)
+    rng = np.random.default_rng(scene.settings.seed)
+    out = {}
+    for i, b in enumerate(scene.blobs):
+        if b.count <= 1:
+            continue
+        ring = ring_at_origin(b)
+        r = float(np.hypot(*ring.T).max())
+        xmin, ymin, xmax, ymax = b.region
+        low, high = np.array([xmin + r, ymin + r]), np.array([xmax - r, ymax - r])
+        centres = np.empty((b.count, 2))
+        for k in range(b.count):
+            for _ in range(MAX_TRIES):
+                c = rng.uniform(low, high) if np.all(high >= low) else None
+                if c is None:
+                    break
+                gap = np.hypot(placed[:, 0] - c[0], placed[:, 1] - c[1]) - placed[:, 2] - r
+                if np.all(gap >= 0.0) and not _blocked_by_statics(ring, c, r, scene.statics):
+                    break
+            else:
+                c = None
+            if c is None:
+                raise PlacementError(i, k, b.count, r)
+            centres[k] = c
+            placed = np.vstack([placed, [c[0], c[1], r]])
+        out[i] = centres
+    return out
