@@ -114,3 +114,26 @@ def test_h5dump_reads_the_file(trajectory):
         pytest.skip("h5dump is not installed (Debian: apt-get install hdf5-tools)")
     r = subprocess.run([h5dump, "-H", str(trajectory)], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and "/connectivity" not in r.stderr and 'GROUP "connectivity"' in r.stdout
+
+
+def test_a_periodic_box_is_written_the_h5md_way(tmp_path):
+    """H5MD 1.1, particles group box: `boundary` a string per dimension, "periodic" or "none"; a
+    rectangular periodic box's `edges` a D-vector of its sides; `image` a time-dependent integer
+    element beside `position`. h5dump reads the file."""
+    (tmp_path / "p.toml").write_text("[scene]\ngravity = [0.0, 0.0]\nperiodic = [2.0, 2.0]\nsteps = 20\n"
+                                     "[[blob]]\ncenter = [0.9, 0.0]\nradius = 0.2\nvelocity = [3.0, 0.0]\n"
+                                     "[[blob]]\ncenter = [-0.4, 0.5]\nradius = 0.2\n")
+    assert cli("run", tmp_path / "p.toml", "-o", tmp_path / "p.h5", "-q")[0] == 0
+    with h5py.File(tmp_path / "p.h5") as f:
+        box = f["particles/blobs/box"]
+        assert [b.decode() for b in box.attrs["boundary"]] == ["periodic", "periodic"]
+        edges = box["edges"]
+        assert edges.shape == (2,) and edges.dtype.kind == "f" and fixed_ascii(edges, "unit") and edges.attrs["unit"] == b"m"
+        image = f["particles/blobs/image"]
+        assert image["value"].dtype.kind == "i" and image["value"].shape == f["particles/blobs/position/value"].shape
+        assert np.array_equal(image["step"][...], f["particles/blobs/position/step"][...])
+        assert image["value"][-1, 0, 0] == 1  # the first blob crossed x = 1 (0.9 + 3 m/s × 20/60 s)
+    h5dump = shutil.which("h5dump")
+    if h5dump is not None:
+        r = subprocess.run([h5dump, "-H", str(tmp_path / "p.h5")], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0 and 'DATASET "edges"' in r.stdout

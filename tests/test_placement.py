@@ -66,7 +66,7 @@ def test_the_same_seed_gives_the_same_scene_and_another_seed_another():
 
 
 @pytest.mark.parametrize("extra, expected", [
-    ("count = 3\n", "s.toml:4: blob[0].region: required with count"),
+    ("count = 3\n", "s.toml:4: blob[0].region: required with count (outside a periodic box)"),
     ("count = 3\nregion = [0.0, 0.0, 1.0]\n", "s.toml:5: blob[0].region: must be a list of 4 numbers [xmin, ymin, xmax, ymax] (got [0.0, 0.0, 1.0])"),
     ("count = 3\nregion = [1.0, 0.0, 0.0, 1.0]\n", "s.toml:5: blob[0].region: needs xmin < xmax and ymin < ymax (got [1.0, 0.0, 0.0, 1.0])"),
     ("center = [0.0, 0.0]\nregion = [0.0, 0.0, 1.0, 1.0]\n",

@@ -3,11 +3,13 @@
 - xdmf: an XDMF time series with its HDF5 heavy data, written by meshio's time-series writer
   (ParaView, VisIt). The mesh is frame 0: the vertices (z = 0) and each ring's edges as line
   cells (closed polylines). meshio's writer keeps one mesh for all steps, so the motion is the
-  point data `displacement` (position − frame-0 position, m; ParaView: *Warp By Vector*), next
+  point data `displacement` (position − frame-0 position, m; ParaView: *Warp By Vector*; in a
+  periodic box from the unwrapped positions, so a blob crossing an edge does not jump), next
   to `position`; per-blob `area_error` and `kinetic_energy` (J) are cell data on every edge of
   the blob.
 - xyz: extended XYZ, one frame per block, z = 0 (OVITO, ASE, MDAnalysis): species `X`, the
-  blob index as a per-atom property, and the step and time (s) in each comment line.
+  blob index as a per-atom property, and the step and time (s) in each comment line; a periodic
+  box as `Lattice` and `pbc="T T F"`.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .h5md import AREA, KINETIC, PARAMETERS, POSITION, open_trajectory, reading
+from .h5md import AREA, IMAGE, KINETIC, PARAMETERS, POSITION, open_trajectory, reading
 
 FORMATS = ("xdmf", "xyz")
 BLOCK_FRAMES = 256  # frames read at a time
@@ -53,19 +55,24 @@ def _export(h5_path, out: Path, fmt: str) -> int:
         blob_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
         steps, times = pos["step"][...], pos["time"][...]
         target = p["target_area"][...]
-        blocks = _blocks(pos["value"], f[AREA]["value"], f[KINETIC]["value"], target)
+        box = f["particles/blobs/box/edges"][...] if IMAGE in f else None  # a periodic box (format 8)
+        blocks = _blocks(pos["value"], f[IMAGE]["value"] if box is not None else None, box, f[AREA]["value"],
+                         f[KINETIC]["value"], target)
         if fmt == "xdmf":
             _xdmf(Path(out), offsets, blob_of, steps, times, blocks)
         else:
-            _xyz(Path(out), blob_of, steps, times, blocks)
+            _xyz(Path(out), blob_of, steps, times, blocks, box)
         return len(steps)
 
 
-def _blocks(position, area, kinetic, target):
-    """(positions (k, N, 2), area error (k, B), kinetic energy (k, B)) a block of frames at a time."""
+def _blocks(position, image, box, area, kinetic, target):
+    """(positions (k, N, 2), unwrapped positions (k, N, 2), area error (k, B), kinetic energy (k, B)) a block
+    of frames at a time. Unwrapped: in a periodic box, position + image × edges (continuous); else position."""
     for start in range(0, position.shape[0], BLOCK_FRAMES):
         stop = start + BLOCK_FRAMES
-        yield position[start:stop], (area[start:stop] - target) / target, kinetic[start:stop]
+        pos = position[start:stop]
+        unwrapped = pos if image is None else pos + image[start:stop] * box
+        yield pos, unwrapped, (area[start:stop] - target) / target, kinetic[start:stop]
 
 
 def _xdmf(out: Path, offsets, blob_of, steps, times, blocks):
@@ -89,26 +96,31 @@ def _xdmf_steps(meshio, name, n, edges, blob_of, times, blocks):
     first = None
     with meshio.xdmf.TimeSeriesWriter(name) as writer:
         k = 0
-        for pos, area_error, kinetic in blocks:
+        for pos, unwrapped, area_error, kinetic in blocks:
             for frame in range(len(pos)):
                 xyz = np.column_stack([pos[frame], np.zeros(n)])
+                moved = np.column_stack([unwrapped[frame], np.zeros(n)])
                 if first is None:
-                    first = xyz
-                    writer.write_points_cells(first, [("line", edges)])
-                writer.write_data(float(times[k]), point_data={"position": xyz, "displacement": xyz - first},
+                    first = moved
+                    writer.write_points_cells(xyz, [("line", edges)])
+                writer.write_data(float(times[k]), point_data={"position": xyz, "displacement": moved - first},
                                   cell_data={"area_error": [area_error[frame][blob_of]],
                                              "kinetic_energy": [kinetic[frame][blob_of]]})
                 k += 1
 
 
-def _xyz(out: Path, blob_of, steps, times, blocks):
+def _xyz(out: Path, blob_of, steps, times, blocks, box):
     n = len(blob_of)
     k = 0
+    # a periodic box as extended XYZ has it: the lattice vectors, periodic in x and y (our box is centred on the
+    # origin, [-L/2, L/2), where the lattice's cell starts at 0: the same periodic world)
+    cell = 'pbc="F F F"' if box is None else \
+        f'Lattice="{box[0]!r} 0.0 0.0 0.0 {box[1]!r} 0.0 0.0 0.0 1.0" pbc="T T F"'
     with open(out, "w") as f:
-        for pos, _, _ in blocks:
+        for pos, _, _, _ in blocks:
             for frame in range(len(pos)):
                 f.write(f"{n}\nProperties=species:S:1:pos:R:3:blob:I:1 step={int(steps[k])} time={float(times[k])!r} "
-                        f'pbc="F F F"\n')
+                        f"{cell}\n")
                 lines = [f"X {x!r} {y!r} 0.0 {b}" for (x, y), b in zip(pos[frame].tolist(), blob_of.tolist())]
                 f.write("\n".join(lines) + "\n")
                 k += 1

@@ -25,24 +25,30 @@ import numpy as np
 from ..geometry import ring_next
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 7
+FORMAT_VERSION = 8
 # Format 1 lacks /connectivity, particles/blobs/mass and the units module; formats 1 and 2 store impact_speed
 # in /restart; formats 1-3 have no sleeping (no /observables/awake: every blob was awake); formats 1-5 are not
 # resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5));
-# formats 1-6 have no moving colliders (no /observables/statics, no /restart/static_pose: every collider at rest).
-READS_FORMATS = (1, 2, 3, 4, 5, 6, 7)
+# formats 1-6 have no moving colliders (no /observables/statics, no /restart/static_pose: every collider at rest);
+# formats 1-7 have no periodic box (their box's boundary is "none").
+READS_FORMATS = (1, 2, 3, 4, 5, 6, 7, 8)
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 7, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 8, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
     creator                  attrs: name = "blobsim", version (fixed-length ASCII)
     modules/units            attrs: version = [1, 0], system = "SI"
 /particles/blobs
-    box                      attrs: dimension = 2, boundary = ["none", "none"]
-    position/value           float64 [frames, vertices, 2]  unit "m"
+    box                      attrs: dimension = 2, boundary = ["none", "none"], or in a periodic box
+                             ["periodic", "periodic"] with
+      edges                  float64 [2]  unit "m": the box's sides L_x, L_y; the box is [-L/2, L/2) (format 8)
+    position/value           float64 [frames, vertices, 2]  unit "m"; in a periodic box each blob is whole, moved
+                             by whole box sides so that its centre (vertex average) lies in the box
     position/step            int64   [frames]
     position/time            float64 [frames]  unit "s" (= step × dt)
+    image/{value,step,time}  value int32 [frames, vertices, 2] (periodic box only): the box sides each vertex was
+                             moved by, so that position + image × edges is the unwrapped, continuous trajectory
     mass                     float64 [vertices]  unit "kg" (each vertex's share of its blob)
 /connectivity
     edges                    int64 [vertices, 2]: vertex index pairs, each ring's closed polyline
@@ -100,6 +106,7 @@ SINCE_FORMAT = {"static_pose": 7}  # /restart datasets newer than format 6, the 
 RESTART_DTYPES = {"f": np.float64, "i": np.int64, "u": np.uint8}
 _PER_VERTEX = {name for name, rows, *_ in RESTART_FIELDS if rows == "vertices"}
 POSITION = "particles/blobs/position"
+IMAGE = "particles/blobs/image"
 AREA = "observables/area"
 KINETIC = "observables/kinetic_energy"
 AWAKE = "observables/awake"
@@ -182,8 +189,15 @@ class TrajectoryWriter:
         particles = f.create_group("particles/blobs")
         box = particles.create_group("box")
         box.attrs["dimension"] = 2
-        box.attrs["boundary"] = np.array([b"none", b"none"])
+        self.box = np.array(params.box, dtype=np.float64) if params.box[0] > 0.0 else None
+        box.attrs["boundary"] = np.array([b"none", b"none"] if self.box is None else [b"periodic", b"periodic"])
         self.position = _series(particles, "position", (n, 2), unit="m", chunk=self.block)
+        self.image = None
+        if self.box is not None:
+            box.create_dataset("edges", data=self.box).attrs["unit"] = ascii("m")
+            self.image = _series(particles, "image", (n, 2), dtype=np.int32, chunk=self.block)
+            self._image = np.empty((self.block, n, 2), np.int32)
+            self._starts, self._counts = model.offsets[:-1], np.diff(model.offsets)
         particles.create_dataset("mass", data=1.0 / model.inv_mass).attrs["unit"] = ascii("kg")
         edges = f.create_group("connectivity").create_dataset(
             "edges", data=np.stack([np.arange(n), ring_next(model.offsets)], axis=1).astype(np.int64))
@@ -227,18 +241,25 @@ class TrajectoryWriter:
         self._awake = np.empty((self.block, b), np.uint8)
         self._last = {name: np.empty(_restart_shape(rows, columns, n, b, S), RESTART_DTYPES[kinds])
                       for name, rows, columns, kinds in RESTART_FIELDS
-                      if name not in ("position", "awake")}  # those two: from the frame buffers
+                      if name != "awake" and (name != "position" or self.box is not None)}
+        # (awake, and position unless the frames store it wrapped: from the frame buffers)
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
         self._count = 0
         self._last_flush = time.monotonic()
-        self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16
+        self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16 + (8 * n if self.box is not None else 0)
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
         """Buffer one frame of `state` (copied); write the block when it is full or old."""
         k = self._count
         self._steps[k] = step
-        self._pos[k] = state.pos
+        if self.box is None:
+            self._pos[k] = state.pos
+        else:  # each blob whole, its centre in the box: the image n = floor(c / L + 1/2) per blob
+            centre = np.add.reduceat(state.pos, self._starts, axis=0) / self._counts[:, None]
+            image = np.repeat(np.floor(centre / self.box + 0.5), self._counts, axis=0)
+            self._image[k] = image
+            self._pos[k] = state.pos - image * self.box
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
@@ -268,13 +289,14 @@ class TrajectoryWriter:
         start, stop = self.frames, self.frames + k
         for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
                               (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k]),
-                              *((self.static_series[name], self._statics[name][:k]) for name in self._statics)):
+                              *((self.static_series[name], self._statics[name][:k]) for name in self._statics),
+                              *(((self.image, self._image[:k]),) if self.image is not None else ())):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
                 ds[start:stop] = data
-        self._write_restart(dict(self._last, position=self._pos[k - 1], awake=self._awake[k - 1]), self._last_pairs,
-                            steps[-1])
+        self._write_restart({"position": self._pos[k - 1], **self._last, "awake": self._awake[k - 1]},
+                            self._last_pairs, steps[-1])
         self.frames = stop
         self._count = 0
         self.file.flush()
@@ -307,7 +329,8 @@ class TrajectoryWriter:
                 stop = min(start + self.block, keep)
                 for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC),
                                     (self.awake, AWAKE),
-                                    *((g, f"{STATICS}/{n}") for n, g in self.static_series.items())):
+                                    *((g, f"{STATICS}/{n}") for n, g in self.static_series.items()),
+                                    *(((self.image, IMAGE),) if self.image is not None else ())):
                     for key in ("value", "step", "time"):
                         ds = group[key]
                         ds.resize(self.frames + stop - start, axis=0)

@@ -78,6 +78,9 @@ class RerunRecorder:
             else:
                 strip = COLLIDERS[s.kind].outline(s, 0.0)
             lo, hi = np.minimum(lo, strip.min(axis=0)), np.maximum(hi, strip.max(axis=0))
+        if scene.settings.periodic is not None:  # frame the whole periodic box
+            half = np.array(scene.settings.periodic) / 2
+            lo, hi = np.minimum(lo, -half), np.maximum(hi, half)
         pad = 0.1 * max(hi[0] - lo[0], hi[1] - lo[1], 1.0)
         lo, hi = lo - pad, hi + pad
         legend = rrb.PlotLegend(visible=len(self.offsets) - 1 <= LEGEND_BLOBS)
@@ -111,6 +114,11 @@ class RerunRecorder:
                 continue
             self.rec.log(f"world/statics/{i}", rr.LineStrips2D([outline], colors=[[90, 90, 90, 255]],
                                                                 radii=[0.01]), static=True)
+        if scene.settings.periodic is not None:  # the periodic box: its outline, in thin grey
+            lx, ly = np.array(scene.settings.periodic) / 2
+            corners = np.array([[-lx, -ly], [lx, -ly], [lx, ly], [-lx, ly], [-lx, -ly]])
+            self.rec.log("world/statics/box", rr.LineStrips2D([corners], colors=[[150, 150, 150, 255]],
+                                                              radii=[0.005]), static=True)
         for i in self.loaded:
             self.rec.log(f"series/statics/{i}/force", rr.SeriesLines(names=[f"static[{i}]"]), static=True)
         for series in ("area_error", "kinetic_energy"):

@@ -3,11 +3,13 @@
 Random sequential addition, the way packings of discs are started (and the O'Hern group's
 deformable-polygon code starts its cells): each copy's centre is drawn uniformly from the
 positions where its bounding disc (the vertex farthest from the ring's vertex average) lies
-inside `region`, and kept if that disc overlaps no disc placed before it (every other blob of
-the scene, grids and single blobs included, and the copies already placed) and none of its
-vertices, nor its centre, lies inside a collider, nor any segment collider passes through its
-disc. Copies are placed table by table, in scene order; a copy that finds no place in
-MAX_TRIES draws stops the placement with an error that says how many fitted.
+inside `region` (in a periodic box without a region: anywhere in the box, across its edges
+too), and kept if that disc overlaps no disc placed before it (every other blob of the scene,
+grids and single blobs included, and the copies already placed; in a periodic box, their
+nearest images) and none of its vertices, nor its centre, lies inside a collider, nor any
+segment collider passes through its disc. Copies are placed table by table, in scene order; a
+copy that finds no place in MAX_TRIES draws stops the placement with an error that says how
+many fitted.
 
 The draws come from numpy's PCG64 generator seeded with `[scene] seed`: the same seed, the same
 scene (on any machine: the generator's stream is fixed by numpy's policy for `default_rng`).
@@ -68,21 +70,28 @@ def random_centres(scene) -> dict[int, np.ndarray]:
                 discs.append((*(centre + shift), r))
     placed = np.array(discs, dtype=np.float64).reshape(-1, 3)
     rng = np.random.default_rng(scene.settings.seed)
+    box = np.array(scene.settings.periodic or (np.inf, np.inf))
     out = {}
     for i, b in enumerate(scene.blobs):
         if b.count <= 1:
             continue
         ring = ring_at_origin(b)
         r = float(np.hypot(*ring.T).max())
-        xmin, ymin, xmax, ymax = b.region
-        low, high = np.array([xmin + r, ymin + r]), np.array([xmax - r, ymax - r])
+        if b.region is None:  # the periodic box: a disc may cross its edges
+            low, high = -box / 2, box / 2
+        else:
+            xmin, ymin, xmax, ymax = b.region
+            low, high = np.array([xmin + r, ymin + r]), np.array([xmax - r, ymax - r])
         centres = np.empty((b.count, 2))
         for k in range(b.count):
             for _ in range(MAX_TRIES):
                 c = rng.uniform(low, high) if np.all(high >= low) else None
                 if c is None:
                     break
-                gap = np.hypot(placed[:, 0] - c[0], placed[:, 1] - c[1]) - placed[:, 2] - r
+                d = placed[:, :2] - c
+                if np.isfinite(box[0]):  # the nearest image (a periodic box)
+                    d -= box * np.round(d / box)
+                gap = np.hypot(d[:, 0], d[:, 1]) - placed[:, 2] - r
                 if np.all(gap >= 0.0) and not _blocked_by_statics(ring, c, r, scene.statics):
                     break
             else:

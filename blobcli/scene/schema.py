@@ -129,6 +129,9 @@ class SceneSettings:
                                between(0.1, 1e9))
     seed: int = key(0, "", "seed of the random placement of blobs with `count`: the same seed, the same scene",
                     "int", between(0, 2 ** 63 - 1))
+    periodic: tuple | None = key(None, "m", "a periodic box [Lx, Ly]: [-Lx/2, Lx/2) × [-Ly/2, Ly/2), blobs leave "
+                                 "through one edge and come back through the other; default: an open world", "vec2",
+                                 positive_vec)
 
 
 @dataclass(frozen=True)
@@ -169,7 +172,7 @@ class BlobDef:
     count: int = key(1, "", "place this many copies at random, without overlap, in `region` (from [scene] seed; "
                      "instead of grid and center); copies get _<k>", "int", between(1, MAX_BLOBS))
     region: tuple | None = key(None, "m", "with count: [xmin, ymin, xmax, ymax], where the copies' bounding discs "
-                               "must lie", "box")
+                               "must lie; default in a periodic box: the whole box", "box")
 
     @property
     def copies(self) -> int:
@@ -484,11 +487,12 @@ def _check_polygon(points, path, problems: _Problems):
         problems.add(path, "polygon has zero area", points)
 
 
-def _check_blob(b: BlobDef, path, problems: _Problems):
+def _check_blob(b: BlobDef, path, problems: _Problems, periodic: bool):
     ring = (b.center if b.count == 1 or b.points is not None else (0.0, 0.0), b.radius)  # count: no centre
     if b.count > 1:
-        if b.region is None:
-            problems.add(path + ("region",), "required with count", show_got=False, line_path=path + ("count",))
+        if b.region is None and not periodic:
+            problems.add(path + ("region",), "required with count (outside a periodic box)", show_got=False,
+                         line_path=path + ("count",))
         for name in ("grid", "center"):
             if getattr(b, name) != BlobDef.__dataclass_fields__[name].default:
                 problems.add(path + (name,), "not with count (its copies are placed at random in region)",
@@ -578,7 +582,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     for i, rb in enumerate(blobs):
         b = _table(BlobDef, rb, ("blob", i), problems)
         if b is not None:
-            _check_blob(b, ("blob", i), problems)
+            _check_blob(b, ("blob", i), problems, settings.periodic is not None)
             blob_defs.append(b)
 
     from ..colliders import (
@@ -631,6 +635,8 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), tuple(schedule_defs), source, text)
     if not problems.items:
         _check_size(scene, problems)
+    if not problems.items and settings.periodic is not None:
+        _check_box(scene, problems)
     if not problems.items and any(b.count > 1 for b in blob_defs):
         from .placement import PlacementError, random_centres
         try:
@@ -723,6 +729,23 @@ def _check_size(scene: Scene, problems: _Problems):
                      f"the limit is {MAX_VERTICES:,}", show_got=False)
     for path, message in run_length_problems(scene):
         problems.add(path, message, show_got=False)
+
+
+PERIODIC_SIDE = 5.0  # × the largest blob radius: the least side of a periodic box
+
+
+def _check_box(scene: Scene, problems: _Problems):
+    """A periodic box must be wider than any pair of blobs can reach (r_a + r_b + the broad phase's
+    margin, at most 2.5 r_max) twice over, so that the nearest image of a blob is the only one that
+    can touch another."""
+    import numpy as np
+
+    from ..sim.model import blob_points
+    largest = max(float(np.hypot(*(ring - ring.mean(axis=0)).T).max())
+                  for ring in (blob_points(b) for b in scene.blobs))
+    if min(scene.settings.periodic) < PERIODIC_SIDE * largest:
+        problems.add(("scene", "periodic"), f"each side must be at least {PERIODIC_SIDE:g} × the largest blob's "
+                     f"radius ({PERIODIC_SIDE * largest:.4g} m)", list(scene.settings.periodic))
 
 
 def run_length_problems(scene: Scene) -> list[tuple[tuple, str]]:

@@ -84,6 +84,9 @@ CONTACTS_PER_VERTEX = 2  # a vertex keeps contacts with its two nearest neighbou
 CONTACT_SLOP = 0.02  # × the blob's radius: room in the kept contacts' margin for the solver's own corrections
 BLOBS_PER_STRIP = 32  # the resolution cuts a scene into B // 32 vertical strips (at least 1) ...
 MAX_STRIPS = 8  # ... and at most 8: a number set by the scene, never by the thread count
+# Configuration name (pipeline.Configuration), bound by jit.build: a periodic box. Only the broad phase reads
+# it; the narrow phase's `image` shifts read the box's sides (0 in an open world) at run time.
+PERIODIC = True
 
 
 @stage_kernel
@@ -144,6 +147,72 @@ def _find_pairs(center, radius, max_pairs):
     return pairs, first[B]
 
 
+@stage_kernel
+def _find_pairs_periodic(center, radius, max_pairs, box):
+    """_find_pairs in a periodic box: nx × ny cells tile the box exactly, each at least as wide as
+    _find_pairs' cells, a centre's cell read from its position wrapped into the box; each blob looks
+    at the 3 × 3 cells around its own, wrapped (every cell of an axis with fewer than 3), and
+    measures distances to the nearest image (see `image`). The box is at least 5 largest radii
+    wide (scene/schema.py), so a pair has one image close enough to touch."""
+    B = center.shape[0]
+    cell = 2.0 * radius.max() * (1.0 + BROAD_MARGIN)
+    nx, ny = max(1, int(box[0] / cell)), max(1, int(box[1] / cell))
+    cell_of = np.empty(B, np.int64)
+    for b in range(B):
+        fx = center[b, 0] / box[0] + 0.5
+        fy = center[b, 1] / box[1] + 0.5
+        ix = min(int((fx - math.floor(fx)) * nx), nx - 1)
+        iy = min(int((fy - math.floor(fy)) * ny), ny - 1)
+        cell_of[b] = iy * nx + ix
+    start, order = _bucket(cell_of, nx * ny)
+    first = np.zeros(B + 1, np.int64)
+    nowhere = np.empty((0, 2), np.int64)
+    for a in numba.prange(B):
+        first[a + 1] = _near_images(a, center, radius, cell_of, start, order, nx, ny, first, nowhere, False, box)
+    for a in range(B):
+        first[a + 1] += first[a]
+    if first[B] > max_pairs:
+        return nowhere, first[B]
+    pairs = np.empty((first[B], 2), np.int64)
+    for a in numba.prange(B):
+        _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs, True, box)
+    return pairs, first[B]
+
+
+@inline_kernel
+def _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill, box):
+    """_near_blobs in a periodic box."""
+    count = 0
+    ix, iy = cell_of[a] % nx, cell_of[a] // nx
+    for dy in range(-1, 2) if ny >= 3 else range(ny):
+        jy = (iy + dy) % ny if ny >= 3 else dy
+        for dx in range(-1, 2) if nx >= 3 else range(nx):
+            jx = (ix + dx) % nx if nx >= 3 else dx
+            c = jy * nx + jx
+            for k in range(start[c], start[c + 1]):
+                b = order[k]
+                if b <= a:
+                    continue
+                sx, sy = image(center, a, b, box)
+                reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
+                if (center[a, 0] + sx - center[b, 0]) ** 2 + (center[a, 1] + sy - center[b, 1]) ** 2 < reach * reach:
+                    if fill:
+                        pairs[first[a] + count, 0], pairs[first[a] + count, 1] = a, b
+                    count += 1
+    return count
+
+
+@inline_kernel
+def image(center, a, b, box):
+    """(s_x, s_y), the shift that carries blob a to the image of it nearest blob b in a periodic box
+    (box = (L_x, L_y)): s = L round((c_b - c_a) / L), so a vertex p of a meets b's vertices as p + s.
+    (0, 0) in an open world (box = (0, 0)): no arithmetic, so an open world keeps its bits."""
+    if box[0] == 0.0:
+        return 0.0, 0.0
+    return (box[0] * math.floor((center[b, 0] - center[a, 0]) / box[0] + 0.5),
+            box[1] * math.floor((center[b, 1] - center[a, 1]) / box[1] + 0.5))
+
+
 @inline_kernel
 def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill):
     """Blobs b > a in the cells around a's, closer than r_a + r_b + margin; with fill, write
@@ -166,7 +235,7 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
 
 
 @stage_kernel
-def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth, c_hit):
+def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_depth, c_hit, box):
     """Broad phase: the pairs of blobs close enough to touch this substep, sleeping or not, as (pairs
     (P, 2), each blob's partners (CSR, see _partners), the strips of the resolution (see _strips), P).
     Past PAIRS_PER_BLOB pairs per blob none are listed (the step must stop: see the constant).
@@ -176,29 +245,35 @@ def find_blob_pairs(pos, offsets, awake, center, radius, edges, blob_contact_dep
     steps are split into compiled calls (and after a resume, when the scratch starts empty)."""
     _blob_bounds(pos, offsets, awake, True, center, radius, edges)
     blob_count = offsets.shape[0] - 1
-    pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
+    if PERIODIC and box[0] > 0.0:  # cells tile the box; neighbours and distances wrap round it
+        pairs, count = _find_pairs_periodic(center, radius, PAIRS_PER_BLOB * blob_count, box)
+    else:
+        pairs, count = _find_pairs(center, radius, PAIRS_PER_BLOB * blob_count)
     blob_contact_depth[:] = 0.0  # no contact has pushed yet this substep
     c_hit[:] = 0
     return pairs, _partners(pairs, blob_count), _strips(center, pairs), count
 
 
 @inline_kernel
-def _separate_deep(pos, inv_mass, offsets, a, b, center, radius):
-    """Deep-overlap fallback for pair (a, b): split them along a line between the centres."""
-    ux, uy = center[b, 0] - center[a, 0], center[b, 1] - center[a, 1]
+def _separate_deep(pos, inv_mass, offsets, a, b, center, radius, box):
+    """Deep-overlap fallback for pair (a, b): split them along a line between the centres (a's nearest
+    image of b's, in a periodic box)."""
+    ox, oy = image(center, b, a, box)  # b's vertices, seen from a: x + o
+    bx, by = center[b, 0] + ox, center[b, 1] + oy
+    ux, uy = bx - center[a, 0], by - center[a, 1]
     dist = math.sqrt(ux * ux + uy * uy)
     if dist > 0.0:
         ux, uy = ux / dist, uy / dist
     else:
         ux, uy = 1.0, 0.0
     share = radius[a] / (radius[a] + radius[b])
-    sx, sy = center[a, 0] + (center[b, 0] - center[a, 0]) * share, center[a, 1] + (center[b, 1] - center[a, 1]) * share
+    sx, sy = center[a, 0] + (bx - center[a, 0]) * share, center[a, 1] + (by - center[a, 1]) * share
     px = py = m_sum = 0.0
-    for blob, side in ((a, 1.0), (b, -1.0)):
+    for blob, side, fx, fy in ((a, 1.0, 0.0, 0.0), (b, -1.0, ox, oy)):
         for i in range(offsets[blob], offsets[blob + 1]):
             m = 1.0 / inv_mass[i]
             m_sum += m
-            d = ((pos[0, i] - sx) * ux + (pos[1, i] - sy) * uy) * side  # > 0: beyond the line
+            d = ((pos[0, i] + fx - sx) * ux + (pos[1, i] + fy - sy) * uy) * side  # > 0: beyond the line
             if d > 0.0:
                 pos[0, i] -= d * side * ux
                 pos[1, i] -= d * side * uy
@@ -274,7 +349,7 @@ def _bucket(key, buckets):
 
 
 @stage_kernel
-def _deep_pairs(pos, offsets, awake, pairs, center, radius, deep):
+def _deep_pairs(pos, offsets, awake, pairs, center, radius, deep, box):
     """deep[k]: either centre of pair k lies inside the other blob, both awake (one awake blob
     deep in a sleeping one wakes its island at the end of the step, and is split from it then)."""
     for k in numba.prange(pairs.shape[0]):
@@ -283,11 +358,12 @@ def _deep_pairs(pos, offsets, awake, pairs, center, radius, deep):
             deep[k] = False
             continue
         # A centre farther from the other's centre than its radius cannot be inside it.
-        d2 = (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2
+        sx, sy = image(center, a, b, box)
+        d2 = (center[a, 0] + sx - center[b, 0]) ** 2 + (center[a, 1] + sy - center[b, 1]) ** 2
         deep[k] = ((d2 <= radius[b] ** 2
-                    and ring_contains(pos, offsets[b], offsets[b + 1], center[a, 0], center[a, 1]))
+                    and ring_contains(pos, offsets[b], offsets[b + 1], center[a, 0] + sx, center[a, 1] + sy))
                    or (d2 <= radius[a] ** 2
-                       and ring_contains(pos, offsets[a], offsets[a + 1], center[b, 0], center[b, 1])))
+                       and ring_contains(pos, offsets[a], offsets[a + 1], center[b, 0] - sx, center[b, 1] - sy)))
 
 
 @stage_kernel
@@ -328,7 +404,7 @@ def _renew(pos, vel, offsets, awake, radius, outgrown, reach_time, g, anchor, bu
 
 @stage_kernel
 def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, start, partner, pair_of, deep, reach,
-            c_edge, stick_edge, stick_t):
+            c_edge, stick_edge, stick_t, box):
     """For every vertex of a stale blob A: its contacts (the edge), at most CONTACTS_PER_VERTEX, each
     with another blob, nearest first (inside before outside): every blob B whose boundary the vertex
     is inside of, or outside of by less than the pair's margin reach[A] + reach[B], how far each may
@@ -363,6 +439,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
             if deep[pair_of[k]]:
                 continue
             B = partner[k]
+            sx, sy = image(center, A, B, box)  # A's vertices as B's nearest image of A has them
             ob, eb = offsets[B], offsets[B + 1]
             n = eb - ob
             margin = reach[A] + reach[B]
@@ -370,7 +447,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
             ax, ay, ex, ey, inv_len2 = (edges[0, ob:eb], edges[1, ob:eb], edges[2, ob:eb], edges[3, ob:eb],
                                         edges[4, ob:eb])
             for i in range(oa, ea):
-                x, y = pos[0, i], pos[1, i]
+                x, y = pos[0, i] + sx, pos[1, i] + sy
                 if (x - cx) ** 2 + (y - cy) ** 2 > reach2:  # beyond B's bounding circle and the margin
                     continue
                 vnx, vny = vertex_normal(pos, orient[A], i, oa, ea)
@@ -424,7 +501,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
 @stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
-             stick_t):
+             stick_t, box):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
     A contact moves only its own two blobs, so contacts within different strips are
@@ -444,7 +521,7 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             for c in range(CONTACTS_PER_VERTEX):
                 if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
                     _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t)
+                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box)
     # phases (2) then (3), each even s then odd s: one prange loop, so the inlined contact code is
     # compiled once in the parallel build (two loops compiled it twice: 25 s of a cold compile)
     for phase in range(4):
@@ -453,13 +530,13 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             s = parity + 2 * q
             _resolve_between(s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
                              material, c_edge, c_hit, contact_depth, center, radius, up_x, up_y, strip_of,
-                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t)
+                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box)
 
 
 @inline_kernel
 def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                      c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing,
-                     backward, stick_edge, stick_t):
+                     backward, stick_edge, stick_t, box):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
     backward: each strip's in reverse order."""
@@ -476,19 +553,21 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, ori
                 for c in range(CONTACTS_PER_VERTEX):
                     if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
                         _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t)
+                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box)
 
 
 @inline_kernel
 def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t):
+                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
-    inside there, push it out, with friction."""
+    inside there, push it out, with friction. (px, py): p where the other blob meets it (in a
+    periodic box, the image of p's blob nearest the other)."""
     e0 = c_edge[s, p]
     blob = blob_of[e0]
     a = blob_of[p]
     o, e = offsets[blob], offsets[blob + 1]
-    px, py = pos[0, p], pos[1, p]
+    sx, sy = image(center, a, blob, box)
+    px, py = pos[0, p] + sx, pos[1, p] + sy
     # Walk along the ring to the locally nearest point q = (1 - t) x_0 + t x_1: while p projects
     # before the kept edge's start (t < 0) and onto the previous edge short of their shared corner,
     # step back; likewise forward. Each step strictly shortens |p - q|, so it cannot cycle; it stops
@@ -571,8 +650,8 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     a0 = stick_edge[s, p]
     if a0 >= 0:  # held at a stick point: the slip is p's way from it
         a1, ta = next_in_ring(a0, o, e), stick_t[s, p]
-        rx = pos[0, p] - (1.0 - ta) * pos[0, a0] - ta * pos[0, a1]
-        ry = pos[1, p] - (1.0 - ta) * pos[1, a0] - ta * pos[1, a1]
+        rx = px - (1.0 - ta) * pos[0, a0] - ta * pos[0, a1]
+        ry = py - (1.0 - ta) * pos[1, a0] - ta * pos[1, a1]
     else:
         rx = (pos[0, p] - prev[0, p]) - (1.0 - t) * (pos[0, e0] - prev[0, e0]) - t * (pos[0, e1] - prev[0, e1])
         ry = (pos[1, p] - prev[1, p]) - (1.0 - t) * (pos[1, e0] - prev[1, e0]) - t * (pos[1, e1] - prev[1, e1])
@@ -589,7 +668,8 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         cut = _coulomb_cut(slip, static, kinetic)
     _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
     if a0 < 0 or cut < 1.0:  # held from now on where it touches now (after a slide: where it slid to)
-        stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, pos[0, p], pos[1, p]), 0.0), 1.0)
+        px, py = pos[0, p] + sx, pos[1, p] + sy
+        stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, px, py), 0.0), 1.0)
 
 
 @inline_kernel
@@ -632,7 +712,7 @@ def _apply(pos, p, e0, e1, wp, w0, w1, dx, dy):
 
 @stage_kernel
 def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, center, radius, edges, pairs, partners,
-                       everyone, reach_time, g, anchor, budget, moved, c_edge, stick_edge, stick_t):
+                       everyone, reach_time, g, anchor, budget, moved, c_edge, stick_edge, stick_t, box):
     """Narrow phase, every iteration: split deeply overlapping pairs; then find the contacts (c_edge) of
     every awake blob (everyone: at the start of the step), or only of those whose vertices went farther
     than their budget from where theirs were found, or were split, and of their partners; the rest keep
@@ -643,10 +723,10 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, cent
     for b in range(B):
         outgrown[b] = awake[b] and (everyone or moved[b] > budget[b])
     deep = np.empty(pairs.shape[0], dtype=np.bool_)
-    _deep_pairs(pos, offsets, awake, pairs, center, radius, deep)
+    _deep_pairs(pos, offsets, awake, pairs, center, radius, deep, box)
     for k in range(pairs.shape[0]):  # rare: separate them first, in pair order
         if deep[k]:
-            _separate_deep(pos, inv_mass, offsets, pairs[k, 0], pairs[k, 1], center, radius)
+            _separate_deep(pos, inv_mass, offsets, pairs[k, 0], pairs[k, 1], center, radius, box)
             outgrown[pairs[k, 0]] = outgrown[pairs[k, 1]] = True
     if not outgrown.any():
         return
@@ -664,16 +744,18 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, cent
         if awake[b]:
             reach[b] = budget[b] + moved[b]
     _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, partners[0], partners[1], partners[2],
-            deep, reach, c_edge, stick_edge, stick_t)
+            deep, reach, c_edge, stick_edge, stick_t, box)
 
 
 @stage_kernel
 def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                          blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t):
+                          blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t,
+                          box):
     """Push every kept contact's vertex out of the other blob where it is inside, with friction
     (Gauss-Seidel, by strips; backward: in reverse order)."""
     _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, blob_contact_depth, center,
-             radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward, stick_edge, stick_t)
+             radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward, stick_edge, stick_t,
+             box)
 
 
 VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
@@ -681,7 +763,7 @@ VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
 
 @stage_kernel
 def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                            blob_contact_depth, h):
+                            blob_contact_depth, h, center, box):
     """Contact velocities between blobs: at every contact that pushed this substep (c_hit), the
     relative velocity of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q,
     loses its approach along the edge's outward normal n (u · n < 0: one-sided, as the push) and its
@@ -741,7 +823,7 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
     for k in numba.prange(K):
         (geometry[0, k], geometry[1, k], geometry[2, k], geometry[3, k], geometry[4, k], geometry[5, k],
          geometry[6, k]) = _contact_geometry(which[0, k], which[1, k], which[2, k], pos, inv_mass, blob_of, awake,
-                                             orient, material, blob_contact_depth, h, share)
+                                             orient, material, blob_contact_depth, h, share, center, box)
     impulse = np.empty((2, K))
     for _ in range(VELOCITY_PASSES):
         for k in numba.prange(K):  # every impulse from the same velocities
@@ -760,7 +842,7 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
 
 
 @inline_kernel
-def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material, depth, h, share):
+def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material, depth, h, share, center, box):
     """(t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h) of the contact of vertex p with edge e0→e1
     (see blob_contact_velocities); a zero-length edge gets scale 0 (no impulse)."""
     a, blob = blob_of[p], blob_of[e0]
@@ -768,7 +850,8 @@ def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material
     len2 = ex * ex + ey * ey
     if len2 == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    t = min(max(_along(pos, e0, e1, pos[0, p], pos[1, p]), 0.0), 1.0)
+    sx, sy = image(center, a, blob, box)
+    t = min(max(_along(pos, e0, e1, pos[0, p] + sx, pos[1, p] + sy), 0.0), 1.0)
     length = math.sqrt(len2)
     we = inv_mass[e0] if awake[blob] else 0.0
     W = inv_mass[p] + ((1.0 - t) ** 2 + t * t) * we
@@ -884,7 +967,7 @@ def _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, start, partner, pai
 
 @stage_kernel
 def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, c_hit, pairs, partners,
-                     predicted, pair_records, rest_speed):
+                     predicted, pair_records, rest_speed, box):
     """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
     vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
     e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
@@ -911,7 +994,8 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_ed
         ma = (offsets[a + 1] - offsets[a]) / inv_mass[offsets[a]]
         mb = (offsets[b + 1] - offsets[b]) / inv_mass[offsets[b]]
         mu = ma * mb / (ma + mb)
-        nx, ny = motion[b, 0] - motion[a, 0], motion[b, 1] - motion[a, 1]
+        sx, sy = image(motion, a, b, box)  # (the centres are motion's first two columns)
+        nx, ny = motion[b, 0] - (motion[a, 0] + sx), motion[b, 1] - (motion[a, 1] + sy)
         length = math.sqrt(nx * nx + ny * ny)
         if length == 0.0:
             continue

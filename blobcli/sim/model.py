@@ -49,6 +49,7 @@ class Params:
     sleep: bool = True  # islands at rest fall asleep (sim/sleep.py) ...
     sleep_speed: float = 0.005  # m/s ... below this rigid speed ...
     time_to_sleep: float = 1.0  # s ... for this long
+    box: tuple = (0.0, 0.0)  # m: the periodic box's sides [Lx, Ly]; (0, 0): an open world
 
 
 @dataclass(frozen=True)
@@ -247,7 +248,7 @@ def build_params(scene: Scene) -> Params:
     return Params(dt=s.dt, substeps=s.substeps, iterations=s.iterations,
                   gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,
                   method=s.method, steps=scene.steps, every=scene.output.every, sleep=s.sleep,
-                  sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep)
+                  sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep, box=s.periodic or (0.0, 0.0))
 
 
 def build(scene: Scene) -> tuple[Model, State]:

@@ -72,6 +72,7 @@ class Configuration(NamedTuple):
     sleep: bool  # islands at rest go to sleep (sim/sleep.py)
     moving: bool  # a collider moves (sim/walls.py) ...
     loaded: bool  # ... or is a loaded wall
+    periodic: bool  # a periodic box (sim/collide.py: the broad phase wraps; contacts see nearest images)
 
     def constants(self) -> dict:
         return {name.upper(): value for name, value in self._asdict().items()}
@@ -79,7 +80,7 @@ class Configuration(NamedTuple):
 
 # The configuration names the step reads. These module values (every stage, area method kot) are never
 # run: `advance` runs the build for the scene's Configuration.
-METHOD, COLLIDES, STATICS, SLEEP, MOVING, LOADED = KOT, True, True, True, True, True
+METHOD, COLLIDES, STATICS, SLEEP, MOVING, LOADED, PERIODIC = KOT, True, True, True, True, True, True
 
 
 class StepSettings(NamedTuple):
@@ -96,6 +97,8 @@ class StepSettings(NamedTuple):
     rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
     sleep_speed: float  # m/s: islands at rest go to sleep once every blob has gone slower than this, on average ...
     time_to_sleep: float  # s ... for this long
+    box_x: float  # m: the periodic box's sides; 0: an open world
+    box_y: float
     config: Configuration
 
 
@@ -117,6 +120,7 @@ def _advance(steps, state, model, settings, clock):
     awake_count = np.count_nonzero(s.awake)
     t = _lap(clock, -1, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
+    box = (c.box_x, c.box_y)  # the periodic box; (0, 0): an open world
     for n in range(steps):
         if awake_count == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
             s.steps_done[0] += 1
@@ -140,7 +144,7 @@ def _advance(steps, state, model, settings, clock):
             t = _lap(clock, LAP_PREDICT, t)
             if COLLIDES:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
-                                                                 s.edges, s.blob_contact_depth, s.c_hit)
+                                                                 s.edges, s.blob_contact_depth, s.c_hit, box)
                 if count > PAIRS_PER_BLOB * blob_count:
                     return n, TOO_MANY_PAIRS, count
                 pair_impact = carry_impacts(pairs, blob_count, s.pair_key, s.pair_impact, s.pair_count)
@@ -167,12 +171,13 @@ def _advance(steps, state, model, settings, clock):
                     keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
                                        s.center, s.radius, s.edges, pairs, partners, not found,
                                        (c.substeps - sub) * h, g, s.anchor, s.budget, s.moved, s.c_edge,
-                                       s.stick_edge, s.stick_t)
+                                       s.stick_edge, s.stick_t, box)
                     found = True
                     t = _lap(clock, LAP_BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
                                           m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
-                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t)
+                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t,
+                                          box)
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
@@ -199,11 +204,11 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, LAP_RESTITUTION, t)
             if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
                 blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
-                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h)
+                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h, s.center, box)
                 t = _lap(clock, LAP_BLOB_VELOCITIES, t)
             if COLLIDES:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
-                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed)
+                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed, box)
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
                 t = _lap(clock, LAP_BLOB_RESTITUTION, t)
@@ -245,7 +250,8 @@ def configuration(model: Model, params: Params) -> Configuration:
     kinds = {s.kind for s in model.statics}
     return Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
                          planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
-                         polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded)
+                         polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded,
+                         periodic=params.box[0] > 0.0 and model.collides)
 
 
 def settings(model: Model, params: Params) -> StepSettings:
@@ -257,7 +263,7 @@ def settings(model: Model, params: Params) -> StepSettings:
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
                         up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
                         sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep,
-                        config=configuration(model, params))
+                        box_x=float(params.box[0]), box_y=float(params.box[1]), config=configuration(model, params))
 
 
 NO_CLOCK = np.zeros(0)
@@ -275,7 +281,7 @@ def describe(model: Model, step_settings: StepSettings) -> str:
     parts = [METHODS[c.method]] + (["blob contacts"] if c.collides else []) \
         + ([" and ".join(kinds) + " colliders"] if kinds else []) + (["loaded walls"] if c.loaded else
                                                                      ["moving walls"] if c.moving else []) \
-        + (["sleeping"] if c.sleep else [])
+        + (["sleeping"] if c.sleep else []) + (["periodic box"] if c.periodic else [])
     return ", ".join(parts) + ("; parallel" if model.parallel else "; serial")
 
 

@@ -47,6 +47,9 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     if len(finite) == 0:
         raise TrajectoryError(f"{h5_path}: no vertex has a finite position in any frame: nothing to draw")
     lo, hi = finite.min(axis=0), finite.max(axis=0)
+    box = np.array(scene.settings.periodic) / 2 if scene.settings.periodic is not None else None
+    if box is not None:  # frame the whole periodic box
+        lo, hi = np.minimum(lo, -box), np.maximum(hi, box)
     pad = 0.08 * max(float(np.max(hi - lo)), 0.5)
     lo, hi = lo - pad, hi + pad
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
@@ -56,6 +59,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     for ax, f in zip(axes[0], picks):
         poses = (t.statics["position"][f], t.statics["angle"][f]) if t.statics else (None, None)
         draw_statics(ax, scene.statics, lo, hi, *poses)
+        if box is not None:
+            ax.add_patch(plt.Rectangle(-box, *(2 * box), fill=False, ec="0.5", lw=0.8, ls="--", zorder=1))
         for b in range(len(t.offsets) - 1):
             ring = t.position[f, t.offsets[b]:t.offsets[b + 1]]
             ax.fill(ring[:, 0], ring[:, 1], color=colors[b], alpha=0.85, lw=0.6, ec="0.15", zorder=2)
