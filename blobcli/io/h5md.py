@@ -23,6 +23,7 @@ import h5py
 import numpy as np
 
 from ..geometry import ring_next
+from ..sim import packing
 from .outputs import create_partial, publish
 
 FORMAT_VERSION = 8
@@ -63,6 +64,15 @@ LAYOUT = """\
       force/{value,step,time}         value float64 [frames, statics, 2]  unit "N": the force the blobs exert
                                       on it, their contact impulses over the frame's step / dt (0 at frame 0)
       torque/{value,step,time}        value float64 [frames, statics]  unit "N m": their moment about its pivot
+    (in a periodic box only, format 8: what the packing measures, sim/packing.py; 0 at frame 0)
+    packing_fraction/{value,step,time}  value float64 [frames]: the blobs' area over the box's
+    contacts/{value,step,time}        value int32 [frames, blobs]: the blobs each touches (contacts that pushed in
+                                      the frame's step's last substep)
+    rattler/{value,step,time}         value uint8 [frames, blobs]: 1 for a rattler (fewer than 3 contacts, removed
+                                      repeatedly)
+    pressure/{value,step,time}        value float64 [frames]  unit "N m-1": -tr(stress) / 2, > 0 compressed
+    stress/{value,step,time}          value float64 [frames, 2, 2]  unit "N m-1": the contact (virial) stress
+                                      (1/A) Σ (x - c) ⊗ f over the frame's step, Cauchy: negative compressed
 /parameters
     blob_offsets             int64 [blobs + 1]: blob b owns vertices offsets[b]:offsets[b+1]
     blob_names               str   [blobs]
@@ -206,6 +216,15 @@ class TrajectoryWriter:
         self.area = _series(obs, "area", (b,), unit="m+2", chunk=self.block)
         self.kinetic = _series(obs, "kinetic_energy", (b,), unit="J", chunk=self.block)
         self.awake = _series(obs, "awake", (b,), dtype=np.uint8, chunk=self.block)
+        self.packing_series, self._packing = {}, {}  # what a packing measures: periodic box only
+        if self.box is not None:
+            self.packing_series = {"packing_fraction": _series(obs, "packing_fraction", (), chunk=self.block),
+                                   "contacts": _series(obs, "contacts", (b,), dtype=np.int32, chunk=self.block),
+                                   "rattler": _series(obs, "rattler", (b,), dtype=np.uint8, chunk=self.block),
+                                   "pressure": _series(obs, "pressure", (), unit="N m-1", chunk=self.block),
+                                   "stress": _series(obs, "stress", (2, 2), unit="N m-1", chunk=self.block)}
+            self._packing = {name: np.empty((self.block, *ds["value"].shape[1:]), ds["value"].dtype)
+                             for name, ds in self.packing_series.items()}
         S = self.statics = len(model.walls.motion)
         self._pivot = model.walls.pivot
         if S:
@@ -246,7 +265,7 @@ class TrajectoryWriter:
         self._last_pairs = (np.zeros(0, np.int64), np.zeros((0, 4)))
         self._count = 0
         self._last_flush = time.monotonic()
-        self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16 + (8 * n if self.box is not None else 0)
+        self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16 + (8 * n + 5 * b + 48 if self.box is not None else 0)
         self.frames = 0
 
     def append(self, step: int, state, area, kinetic):
@@ -260,6 +279,7 @@ class TrajectoryWriter:
             image = np.repeat(np.floor(centre / self.box + 0.5), self._counts, axis=0)
             self._image[k] = image
             self._pos[k] = state.pos - image * self.box
+            self._measure_packing(k, step, state, area)
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
@@ -276,6 +296,19 @@ class TrajectoryWriter:
         if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
 
+    def _measure_packing(self, k, step, state, area):
+        """Frame k's packing_fraction, contacts, rattlers, pressure and stress (sim/packing.py)."""
+        virial, touching, count = state.packing
+        touching = touching[:count[0]]
+        blobs = len(area)
+        sigma = packing.stress(virial, self.dt, self.box) if step > 0 else np.zeros((2, 2))
+        out = self._packing
+        out["packing_fraction"][k] = packing.packing_fraction(area, self.box)
+        out["contacts"][k] = packing.contact_counts(touching, blobs)
+        out["rattler"][k] = packing.rattlers(touching, blobs)
+        out["stress"][k] = sigma
+        out["pressure"][k] = packing.pressure(sigma)
+
     def flush(self):
         k = self._count
         if k == 0:
@@ -290,7 +323,8 @@ class TrajectoryWriter:
         for group, values in ((self.position, self._pos[:k]), (self.area, self._area[:k]),
                               (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k]),
                               *((self.static_series[name], self._statics[name][:k]) for name in self._statics),
-                              *(((self.image, self._image[:k]),) if self.image is not None else ())):
+                              *(((self.image, self._image[:k]),) if self.image is not None else ()),
+                              *((self.packing_series[name], self._packing[name][:k]) for name in self._packing)):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
                 ds.resize(stop, axis=0)
@@ -330,7 +364,8 @@ class TrajectoryWriter:
                 for group, name in ((self.position, POSITION), (self.area, AREA), (self.kinetic, KINETIC),
                                     (self.awake, AWAKE),
                                     *((g, f"{STATICS}/{n}") for n, g in self.static_series.items()),
-                                    *(((self.image, IMAGE),) if self.image is not None else ())):
+                                    *(((self.image, IMAGE),) if self.image is not None else ()),
+                                    *((g, f"observables/{n}") for n, g in self.packing_series.items())):
                     for key in ("value", "step", "time"):
                         ds = group[key]
                         ds.resize(self.frames + stop - start, axis=0)

@@ -118,6 +118,8 @@ class SceneSettings:
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")
     damping: float = key(2.0, "1/s", "decay rate of each blob's deformation: its velocity relative to its "
                          "best-fit rigid motion (moving, spinning and rolling are not damped)", "float", nonnegative)
+    drag: float = key(0.0, "1/s", "viscous drag on all motion, velocities decaying as exp(-drag t): brings a "
+                      "packing to rest (relaxation); sleeping is off while drag > 0", "float", nonnegative)
     sleep: bool = key(True, "", "let islands of touching blobs at rest fall asleep: frozen exactly, not simulated, "
                       "woken by a moving blob coming near", "bool")
     sleep_speed: float = key(0.005, "m/s", "a blob is at rest while it goes slower than this on average over "

@@ -501,7 +501,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
 @stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
-             stick_t, box):
+             stick_t, box, virial, h):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
 
     A contact moves only its own two blobs, so contacts within different strips are
@@ -521,7 +521,8 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             for c in range(CONTACTS_PER_VERTEX):
                 if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
                     _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box)
+                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box,
+                                     virial, h)
     # phases (2) then (3), each even s then odd s: one prange loop, so the inlined contact code is
     # compiled once in the parallel build (two loops compiled it twice: 25 s of a cold compile)
     for phase in range(4):
@@ -530,13 +531,13 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             s = parity + 2 * q
             _resolve_between(s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
                              material, c_edge, c_hit, contact_depth, center, radius, up_x, up_y, strip_of,
-                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box)
+                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h)
 
 
 @inline_kernel
 def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                      c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing,
-                     backward, stick_edge, stick_t, box):
+                     backward, stick_edge, stick_t, box, virial, h):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
     backward: each strip's in reverse order."""
@@ -553,15 +554,17 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, ori
                 for c in range(CONTACTS_PER_VERTEX):
                     if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
                         _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box)
+                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box,
+                                         virial, h)
 
 
 @inline_kernel
 def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box):
+                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box, virial, h):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
     inside there, push it out, with friction. (px, py): p where the other blob meets it (in a
-    periodic box, the image of p's blob nearest the other)."""
+    periodic box, the image of p's blob nearest the other). In a periodic box the push's impulses go
+    into the virial (sim/packing.py): m Δx / h on p's blob at p, and on the other at the edge point."""
     e0 = c_edge[s, p]
     blob = blob_of[e0]
     a = blob_of[p]
@@ -666,10 +669,25 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         # v = (x - x_prev) / h turned into vertex spikes of 0.1-0.5 m/s in a resting pile.)
         static, kinetic = _friction_limits(material, a, blob, contact_depth[p])
         cut = _coulomb_cut(slip, static, kinetic)
-    _apply(pos, p, e0, e1, wp, w0, w1, (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W)
+    dx, dy = (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W
+    if box[0] > 0.0:
+        _add_virial(virial, a, pos[0, p] - center[a, 0], pos[1, p] - center[a, 1], wp * dx / (inv_mass[p] * h),
+                    wp * dy / (inv_mass[p] * h))
+        _add_virial(virial, blob, qx - center[blob, 0], qy - center[blob, 1], -we * dx / (inv_mass[e0] * h),
+                    -we * dy / (inv_mass[e0] * h))
+    _apply(pos, p, e0, e1, wp, w0, w1, dx, dy)
     if a0 < 0 or cut < 1.0:  # held from now on where it touches now (after a slide: where it slid to)
         px, py = pos[0, p] + sx, pos[1, p] + sy
         stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, px, py), 0.0), 1.0)
+
+
+@inline_kernel
+def _add_virial(virial, b, rx, ry, jx, jy):
+    """virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre."""
+    virial[b, 0] += rx * jx
+    virial[b, 1] += rx * jy
+    virial[b, 2] += ry * jx
+    virial[b, 3] += ry * jy
 
 
 @inline_kernel
@@ -750,12 +768,12 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, cent
 @stage_kernel
 def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
                           blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t,
-                          box):
+                          box, virial, h):
     """Push every kept contact's vertex out of the other blob where it is inside, with friction
     (Gauss-Seidel, by strips; backward: in reverse order)."""
     _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, blob_contact_depth, center,
              radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward, stick_edge, stick_t,
-             box)
+             box, virial, h)
 
 
 VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
@@ -763,7 +781,7 @@ VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
 
 @stage_kernel
 def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
-                            blob_contact_depth, h, center, box):
+                            blob_contact_depth, h, center, box, virial):
     """Contact velocities between blobs: at every contact that pushed this substep (c_hit), the
     relative velocity of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q,
     loses its approach along the edge's outward normal n (u · n < 0: one-sided, as the push) and its
@@ -839,6 +857,12 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
             vel[1, e0] -= (1.0 - t) * we * jy
             vel[0, e1] -= t * we * jx
             vel[1, e1] -= t * we * jy
+            if box[0] > 0.0:  # the virial (sim/packing.py): J on p's blob at p, -m_e w_e J on the other's at q
+                a, b = blob_of[p], blob_of[e0]
+                _add_virial(virial, a, pos[0, p] - center[a, 0], pos[1, p] - center[a, 1], jx, jy)
+                qx, qy = (1.0 - t) * pos[0, e0] + t * pos[0, e1], (1.0 - t) * pos[1, e0] + t * pos[1, e1]
+                _add_virial(virial, b, qx - center[b, 0], qy - center[b, 1], -we * jx / inv_mass[e0],
+                            -we * jy / inv_mass[e0])
 
 
 @inline_kernel
@@ -943,10 +967,11 @@ def _centre_motion_into(pos, vel, o, e, out):
 
 
 @stage_kernel
-def _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, start, partner, pair_of):
+def _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, start, partner, pair_of, need_awake=True):
     """Whether a contact between the two blobs of each pair pushed this substep, both awake (a
-    sleeping blob does not move: sim/sleep.py). Each blob reads its own vertices' contacts once and
-    marks its own partner slots (start, partner, pair_of: CSR, see _partners), in parallel."""
+    sleeping blob does not move: sim/sleep.py) unless not need_awake. Each blob reads its own
+    vertices' contacts once and marks its own partner slots (start, partner, pair_of: CSR, see
+    _partners), in parallel."""
     pushed = np.zeros(partner.shape[0], np.bool_)
     for a in numba.prange(offsets.shape[0] - 1):
         for p in range(offsets[a], offsets[a + 1]):
@@ -960,14 +985,28 @@ def _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, start, partner, pai
     touching = np.zeros(pairs.shape[0], np.bool_)
     for j in range(partner.shape[0]):
         touching[pair_of[j]] |= pushed[j]
-    for k in range(pairs.shape[0]):
-        touching[k] &= awake[pairs[k, 0]] and awake[pairs[k, 1]]
+    if need_awake:
+        for k in range(pairs.shape[0]):
+            touching[k] &= awake[pairs[k, 0]] and awake[pairs[k, 1]]
     return touching
 
 
 @stage_kernel
+def keep_touching(offsets, blob_of, awake, c_edge, c_hit, pairs, partners, touching_pairs, touching_count):
+    """The pairs whose contacts pushed in the step's last substep, asleep or not, into touching_pairs, in
+    pair order, and how many (sim/packing.py counts each blob's contacts from them)."""
+    touching = _touching(offsets, blob_of, awake, c_edge, c_hit, pairs, partners[0], partners[1], partners[2], False)
+    n = 0
+    for k in range(pairs.shape[0]):
+        if touching[k]:
+            touching_pairs[n, 0], touching_pairs[n, 1] = pairs[k, 0], pairs[k, 1]
+            n += 1
+    touching_count[0] = n
+
+
+@stage_kernel
 def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_edge, c_hit, pairs, partners,
-                     predicted, pair_records, rest_speed, box):
+                     predicted, pair_records, rest_speed, box, virial):
     """Bounce between blobs: the rule of integrate.bounce for each touching pair, along n̄, the unit
     vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄, with
     e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per
@@ -1011,6 +1050,10 @@ def blob_restitution(pos, vel, offsets, inv_mass, blob_of, awake, material, c_ed
         du = bounce(pair_records, k, approach, before, 0.0, 0.0, u, after - 0.5 * u * u,
                     max(material[a, 2], material[b, 2]), rest_speed)
         if du != 0.0:
+            if box[0] > 0.0:  # the virial (sim/packing.py): ∓μ Δu n̄ on a and b, at the midpoint between them
+                for blob, side in ((a, 0.5), (b, -0.5)):
+                    _add_virial(virial, blob, side * length * nx, side * length * ny, -side * 2.0 * mu * du * nx,
+                                -side * 2.0 * mu * du * ny)
             for blob, share in ((a, -mb / (ma + mb)), (b, ma / (ma + mb))):
                 dx, dy = du * share * nx, du * share * ny
                 motion[blob, 4] += motion[blob, 2] * dx + motion[blob, 3] * dy + 0.5 * (dx * dx + dy * dy)

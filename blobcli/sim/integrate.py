@@ -57,6 +57,19 @@ def damp_deformation(pos, vel, offsets, awake, factor):
 
 
 @stage_kernel
+def drag_motion(vel, offsets, awake, factor):
+    """A viscous drag on all motion (`[scene] drag` γ): v <- v f, f = exp(-γ h), the exact decay of
+    dv/dt = -γ v over the substep. Unlike damp_deformation it slows moving, spinning and rolling too:
+    a damped dynamics that brings a packing to rest (the O'Hern group's deformable polygons relax the
+    same way, or by FIRE). Momentum decays with it: the drag is a force from outside, the medium."""
+    for b in numba.prange(offsets.shape[0] - 1):
+        if awake[b]:
+            for i in range(offsets[b], offsets[b + 1]):
+                vel[0, i] *= factor
+                vel[1, i] *= factor
+
+
+@stage_kernel
 def predict(pos, prev, vel, lam, contact_depth, offsets, awake, predicted, gx, gy, h):
     """x_prev <- x; v += g h; x moves by the rigid motion exactly and by the deformation to first
     order; clear this substep's multipliers and contacts. predicted[b] = (v_c, ½ mean |v|², -g · c), the

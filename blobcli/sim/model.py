@@ -50,6 +50,7 @@ class Params:
     sleep_speed: float = 0.005  # m/s ... below this rigid speed ...
     time_to_sleep: float = 1.0  # s ... for this long
     box: tuple = (0.0, 0.0)  # m: the periodic box's sides [Lx, Ly]; (0, 0): an open world
+    drag: float = 0.0  # 1/s: viscous drag on all motion
 
 
 @dataclass(frozen=True)
@@ -221,6 +222,10 @@ class State(NamedTuple):
     touch: tuple  # per vertex, this substep's pushes by colliders: (static_of (2, N) int64, static_push (4, N) m:
     #               up to two colliders and their pushes; wall_of (N,) int64, wall_push (2, N) m: a loaded wall's
     #               push this iteration)
+    packing: tuple  # in a periodic box, what the last step's blob contacts did (sim/packing.py): (virial (B, 4) N m s:
+    #                 each blob's Σ (x - c) ⊗ J over its contact impulses J at points x, as xx, xy, yx, yy;
+    #                 touching (PAIRS_PER_BLOB B, 2) int64: the pairs in contact at the step's end ...;
+    #                 touching_count (1,) int64: ... how many); empty arrays in an open world
 
     @property
     def pos(self) -> np.ndarray:
@@ -242,13 +247,19 @@ def blob_points(b: BlobDef) -> np.ndarray:
     return np.stack([cx + b.radius * np.cos(theta), cy + b.radius * np.sin(theta)], axis=1)
 
 
+def packing_records(blobs: int) -> tuple:
+    """State.packing for a scene of this many blobs in a periodic box (0: an open world, which keeps none)."""
+    return np.zeros((blobs, 4)), np.zeros((PAIRS_PER_BLOB * blobs, 2), np.int64), np.zeros(1, np.int64)
+
+
 def build_params(scene: Scene) -> Params:
     """Time stepping and world settings of a validated scene."""
     s = scene.settings
     return Params(dt=s.dt, substeps=s.substeps, iterations=s.iterations,
                   gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,
-                  method=s.method, steps=scene.steps, every=scene.output.every, sleep=s.sleep,
-                  sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep, box=s.periodic or (0.0, 0.0))
+                  method=s.method, steps=scene.steps, every=scene.output.every, sleep=s.sleep and s.drag == 0.0,
+                  sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep, box=s.periodic or (0.0, 0.0),
+                  drag=s.drag)
 
 
 def build(scene: Scene) -> tuple[Model, State]:
@@ -324,7 +335,8 @@ def build(scene: Scene) -> tuple[Model, State]:
                   stick_t=np.zeros((CONTACTS_PER_VERTEX, n)), steps_done=np.zeros(1, np.int64),
                   static_pose=np.zeros((len(scene.statics), WALL_POSE_COLUMNS)),
                   static_impulse=np.zeros((len(scene.statics), 3)), placed=initial_placed(statics),
-                  touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))))
+                  touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))),
+                  packing=packing_records(blobs if scene.settings.periodic is not None else 0))
     if model.moving:  # (a kernel: compiled only for scenes that need it, so others print their first line at once)
         place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
     begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)

@@ -30,6 +30,7 @@ from .collide import (
     find_blob_pairs,
     keep_blob_contacts,
     keep_impacts,
+    keep_touching,
     release_sticks,
     resolve_blob_contacts,
 )
@@ -37,6 +38,7 @@ from .integrate import (
     MIN_REST_SPEED,
     REST_SPEED_FACTOR,
     damp_deformation,
+    drag_motion,
     predict,
     restitution,
     stop_impact_velocities,
@@ -92,6 +94,7 @@ class StepSettings(NamedTuple):
     gx: float  # m/s²
     gy: float
     damping: float  # 1/s
+    drag: float  # 1/s
     up_x: float  # -g / |g| (0 without gravity): "above", for the stacking rule of sim/collide.py
     up_y: float
     rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
@@ -126,6 +129,8 @@ def _advance(steps, state, model, settings, clock):
             s.steps_done[0] += 1
             continue
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
+        if PERIODIC:  # the step's contact impulses, for the stress (sim/packing.py)
+            s.packing[0][:] = 0.0
         for sub in range(c.substeps):
             if MOVING:  # colliders to where they are at the substep's end; those near sleeping blobs wake them
                 place_walls((s.steps_done[0] * c.substeps + sub) * h, h, m.walls, s.static_pose, m.statics, s.placed,
@@ -134,6 +139,9 @@ def _advance(steps, state, model, settings, clock):
             if c.damping > 0.0:
                 # (v - v_rigid) *= exp(-damping h)
                 damp_deformation(s.position, s.velocity, m.offsets, s.awake, damping)
+                t = _lap(clock, LAP_DAMPING, t)
+            if c.drag > 0.0:  # v *= exp(-drag h): all motion, toward rest
+                drag_motion(s.velocity, m.offsets, s.awake, math.exp(-c.drag * h))
                 t = _lap(clock, LAP_DAMPING, t)
             # x_prev <- x, v += g h, x += v h (rigid rotation exact); multipliers and contacts start at 0
             predict(s.position, s.previous, s.velocity, s.lam, s.contact_depth, m.offsets, s.awake, s.predicted, c.gx,
@@ -177,7 +185,7 @@ def _advance(steps, state, model, settings, clock):
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
                                           m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
                                           s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t,
-                                          box)
+                                          box, s.packing[0], h)
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
@@ -204,14 +212,19 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, LAP_RESTITUTION, t)
             if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
                 blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
-                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h, s.center, box)
+                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h, s.center, box,
+                                        s.packing[0])
                 t = _lap(clock, LAP_BLOB_VELOCITIES, t)
             if COLLIDES:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
-                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed, box)
+                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed, box,
+                                 s.packing[0])
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
                 t = _lap(clock, LAP_BLOB_RESTITUTION, t)
+        if PERIODIC:  # the pairs in contact at the step's end, for the contact numbers (sim/packing.py)
+            keep_touching(m.offsets, m.blob_of, s.awake, s.c_edge, s.c_hit, pairs, partners, s.packing[1],
+                          s.packing[2])
         if SLEEP:  # islands of blobs at rest fall asleep, islands with a mover wake
             awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
                                        s.contact_material, s.c_edge, s.awake, s.still, s.still_center,
@@ -261,6 +274,7 @@ def settings(model: Model, params: Params) -> StepSettings:
     h = params.dt / params.substeps
     return StepSettings(dt=params.dt, substeps=params.substeps, iterations=params.iterations,
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
+                        drag=params.drag,
                         up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
                         sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep,
                         box_x=float(params.box[0]), box_y=float(params.box[1]), config=configuration(model, params))

@@ -1,0 +1,69 @@
+"""What a packing measures, frame by frame, in a periodic box: packing fraction, contacts, rattlers,
+pressure and stress. The step leaves its records in State.packing (sim/collide.py writes them); this
+module turns them into the numbers soft-matter codes report (O'Hern et al., PRE 68, 011306 (2003);
+Boromand et al., Soft Matter 15, 5854 (2019)).
+
+Stress: the Love–Weber (virial) form over contacts, per blob,
+    σ = (1 / A) Σ_blobs Σ_contacts (x - c) ⊗ f,
+x a contact's point on the blob, c the blob's centre, f the contact's force on it, A = L_x L_y the box's
+area. For a pair, f the force on a, it adds (x - c_a) ⊗ f + (x - c_b) ⊗ (-f) = (c_b - c_a) ⊗ f: the branch
+vector times the force, whatever image they meet across, and wherever on the contact the force acts.
+The forces are the step's contact impulses over dt, all three kinds the step applies: the pushes
+(m Δx / h at the vertex and at the edge point), the velocity-level impulses at the same points, and
+the pair's bounce (restitution's uniform Δv, ∓μ Δu n̄, at the midpoint between the centres). All three
+are needed: two blobs at rest pressed together are pushed apart by the positions' solve every substep
+and held by the bounce rule, and the sum of the two is their true, zero, force. Over a collision the
+stress integrates to Σ_steps (c_b - c_a) Δp_a (tests/test_periodic.py: to 0.04%). σ is a Cauchy
+stress (N/m in 2D): negative under
+compression; the pressure is p = -tr(σ) / 2, positive under compression.
+
+Contacts: the blobs each blob touched in the step's last substep (a contact that pushed). Rattlers: blobs
+with fewer than RATTLER_BELOW contacts carry no load in a frictionless packing; removed one after another
+(their partners lose a contact each) until every blob left has at least that many (d + 1 = 3 in 2D).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+RATTLER_BELOW = 3  # contacts: a blob with fewer is a rattler (2D: d + 1)
+
+
+def contact_counts(touching: np.ndarray, blobs: int) -> np.ndarray:
+    """(B,) int32: how many blobs each blob touches, from the touching pairs (P, 2)."""
+    return np.bincount(touching.ravel(), minlength=blobs).astype(np.int32)
+
+
+def rattlers(touching: np.ndarray, blobs: int) -> np.ndarray:
+    """(B,) bool: the rattlers, removed repeatedly until every blob left has RATTLER_BELOW contacts."""
+    gone = np.zeros(blobs, bool)
+    while True:
+        live = touching[~(gone[touching[:, 0]] | gone[touching[:, 1]])]
+        count = np.bincount(live.ravel(), minlength=blobs)
+        new = ~gone & (count < RATTLER_BELOW)
+        if not new.any():
+            return gone
+        gone |= new
+
+
+def mean_contacts(touching: np.ndarray, rattler: np.ndarray) -> tuple[float, float]:
+    """(z with every blob, z without the rattlers): 2 × contacts / blobs."""
+    blobs = len(rattler)
+    kept = touching[~(rattler[touching[:, 0]] | rattler[touching[:, 1]])]
+    left = int((~rattler).sum())
+    return 2.0 * len(touching) / blobs, (2.0 * len(kept) / left if left else 0.0)
+
+
+def stress(virial: np.ndarray, dt: float, box) -> np.ndarray:
+    """(2, 2) N/m: σ = Σ_blobs (x - c) ⊗ J / (dt A), from the step's virial records (B, 4)."""
+    return virial.sum(axis=0).reshape(2, 2) / (dt * box[0] * box[1])
+
+
+def pressure(sigma: np.ndarray) -> float:
+    """p = -tr(σ) / 2 (N/m), positive under compression."""
+    return -0.5 * float(sigma[0, 0] + sigma[1, 1])
+
+
+def packing_fraction(area: np.ndarray, box) -> float:
+    """The blobs' area over the box's."""
+    return float(np.abs(area).sum() / (box[0] * box[1]))
