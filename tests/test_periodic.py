@@ -209,3 +209,68 @@ def test_drag_slows_all_motion_as_exp_minus_drag_t_and_turns_sleeping_off():
     r = state.pos - state.pos.mean(axis=0)
     spin = (r[:, 0] * state.vel[:, 1] - r[:, 1] * state.vel[:, 0]).sum() / (r ** 2).sum()
     assert spin == pytest.approx(3.0 * np.exp(-2.0), rel=1e-3)  # spinning is slowed too (not by damping alone)
+
+
+SHRINK = """[scene]
+gravity = [0.0, 0.0]
+periodic = [3.0, 3.0]
+seed = 2
+steps = 90
+[[blob]]
+radius = 0.2
+vertices = 16
+count = 24
+friction = 0.0
+[[schedule]]
+key = "scene.periodic"
+at = [[0.0, 3.0, 3.0], [1.0, 1.9, 1.95]]
+"""
+
+
+def test_a_scheduled_box_shrinks_and_carries_the_blobs_with_it(tmp_path):
+    """The box goes from 3 × 3 to 1.9 × 1.95 m in 1 s: each frame's edges are recorded, every blob's centre stays
+    in the box, the packing fraction follows 1 / (L_x L_y), and the blobs end pressed together (pressure > 0)."""
+    from blobcli import simulate
+    out = tmp_path / "shrink.h5"
+    result = simulate(parse_scene(SHRINK, "shrink.toml"), out)
+    assert result.status == "complete"
+    with h5py.File(out) as f:
+        edges = f["particles/blobs/box/edges/value"][...]
+        time = f["particles/blobs/box/edges/time"][...]
+        pos = f["particles/blobs/position/value"][...]
+        offsets = f["parameters/blob_offsets"][...]
+        fraction = f["observables/packing_fraction/value"][...]
+        pressure = f["observables/pressure/value"][...]
+    # frame k holds the box of the step that made it, set at its start: t = (k - 1) dt
+    expected = np.stack([np.interp(time - 1 / 60, [0, 1], [3.0, 1.9]), np.interp(time - 1 / 60, [0, 1], [3.0, 1.95])], 1)
+    assert np.allclose(edges[1:], expected[1:]) and np.allclose(edges[0], [3.0, 3.0])
+    centres = np.stack([pos[:, o:e].mean(axis=1) for o, e in zip(offsets[:-1], offsets[1:])], axis=1)
+    assert np.all(np.abs(centres) <= edges[:, None, :] / 2 + 1e-12)
+    area = fraction * edges[:, 0] * edges[:, 1]
+    assert np.allclose(area[1:], area[1], rtol=2e-3)  # the blobs' area: what the box loses, φ gains
+    assert fraction[-1] > 0.75 and pressure[-10:].mean() > 0
+
+
+def test_a_box_schedule_needs_a_periodic_box():
+    with pytest.raises(SceneError) as e:
+        parse_scene(SHRINK.replace("periodic = [3.0, 3.0]\n", "").replace("count = 24\n", "count = 24\n"
+                                                                          "region = [-1.5, -1.5, 1.5, 1.5]\n"), "s.toml")
+    assert e.value.problems == ["s.toml:12: schedule[0].key: only in a periodic box ([scene] periodic) "
+                                "(got 'scene.periodic')"]
+
+
+def test_a_run_stopped_while_the_box_shrinks_resumes_bit_identically(tmp_path):
+    from blobcli import simulate
+    from blobcli.scene.schema import with_overrides
+    scene = parse_scene(SHRINK, "shrink.toml")
+    whole, first = tmp_path / "whole.h5", tmp_path / "first.h5"
+    simulate(scene, whole)
+    simulate(with_overrides(scene, steps=47), first)
+    resumed = simulate(scene, tmp_path / "resumed.h5", resume=first)
+    assert resumed.status == "complete"
+    report = compare_files(whole, tmp_path / "resumed.h5")
+    assert report.same and report.frames == 91, report.text()
+    with h5py.File(whole) as a, h5py.File(tmp_path / "resumed.h5") as b:
+        for name in ("particles/blobs/box/edges/value", "observables/pressure/value", "observables/contacts/value"):
+            assert np.array_equal(a[name][...], b[name][...]), name
+        assert np.array_equal(a["restart/position"][...], b["restart/position"][...])

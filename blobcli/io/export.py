@@ -16,9 +16,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import h5py
 import numpy as np
 
-from .h5md import AREA, IMAGE, KINETIC, PARAMETERS, POSITION, open_trajectory, reading
+from .h5md import AREA, EDGES, IMAGE, KINETIC, PARAMETERS, POSITION, open_trajectory, reading
 
 FORMATS = ("xdmf", "xyz")
 BLOCK_FRAMES = 256  # frames read at a time
@@ -55,7 +56,10 @@ def _export(h5_path, out: Path, fmt: str) -> int:
         blob_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
         steps, times = pos["step"][...], pos["time"][...]
         target = p["target_area"][...]
-        box = f["particles/blobs/box/edges"][...] if IMAGE in f else None  # a periodic box (format 8)
+        box = None  # a periodic box (format 8): its sides, frame by frame
+        if IMAGE in f:
+            edges = f[EDGES]
+            box = edges["value"][...] if isinstance(edges, h5py.Group) else np.tile(edges[...], (len(steps), 1))
         blocks = _blocks(pos["value"], f[IMAGE]["value"] if box is not None else None, box, f[AREA]["value"],
                          f[KINETIC]["value"], target)
         if fmt == "xdmf":
@@ -71,7 +75,7 @@ def _blocks(position, image, box, area, kinetic, target):
     for start in range(0, position.shape[0], BLOCK_FRAMES):
         stop = start + BLOCK_FRAMES
         pos = position[start:stop]
-        unwrapped = pos if image is None else pos + image[start:stop] * box
+        unwrapped = pos if image is None else pos + image[start:stop] * box[start:stop, None, :]
         yield pos, unwrapped, (area[start:stop] - target) / target, kinetic[start:stop]
 
 
@@ -114,11 +118,11 @@ def _xyz(out: Path, blob_of, steps, times, blocks, box):
     k = 0
     # a periodic box as extended XYZ has it: the lattice vectors, periodic in x and y (our box is centred on the
     # origin, [-L/2, L/2), where the lattice's cell starts at 0: the same periodic world)
-    cell = 'pbc="F F F"' if box is None else \
-        f'Lattice="{box[0]!r} 0.0 0.0 0.0 {box[1]!r} 0.0 0.0 0.0 1.0" pbc="T T F"'
     with open(out, "w") as f:
         for pos, _, _, _ in blocks:
             for frame in range(len(pos)):
+                cell = 'pbc="F F F"' if box is None else \
+                    f'Lattice="{box[k, 0]!r} 0.0 0.0 0.0 {box[k, 1]!r} 0.0 0.0 0.0 1.0" pbc="T T F"'
                 f.write(f"{n}\nProperties=species:S:1:pos:R:3:blob:I:1 step={int(steps[k])} time={float(times[k])!r} "
                         f"{cell}\n")
                 lines = [f"X {x!r} {y!r} 0.0 {b}" for (x, y), b in zip(pos[frame].tolist(), blob_of.tolist())]

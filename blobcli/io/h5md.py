@@ -43,7 +43,8 @@ LAYOUT = """\
 /particles/blobs
     box                      attrs: dimension = 2, boundary = ["none", "none"], or in a periodic box
                              ["periodic", "periodic"] with
-      edges                  float64 [2]  unit "m": the box's sides L_x, L_y; the box is [-L/2, L/2) (format 8)
+      edges                  float64 [2]  unit "m": the box's sides L_x, L_y; the box is [-L/2, L/2) (format 8);
+                             a box that changes (a scene.periodic schedule): {value [frames, 2], step, time}
     position/value           float64 [frames, vertices, 2]  unit "m"; in a periodic box each blob is whole, moved
                              by whole box sides so that its centre (vertex average) lies in the box
     position/step            int64   [frames]
@@ -117,6 +118,7 @@ RESTART_DTYPES = {"f": np.float64, "i": np.int64, "u": np.uint8}
 _PER_VERTEX = {name for name, rows, *_ in RESTART_FIELDS if rows == "vertices"}
 POSITION = "particles/blobs/position"
 IMAGE = "particles/blobs/image"
+EDGES = "particles/blobs/box/edges"
 AREA = "observables/area"
 KINETIC = "observables/kinetic_energy"
 AWAKE = "observables/awake"
@@ -203,8 +205,13 @@ class TrajectoryWriter:
         box.attrs["boundary"] = np.array([b"none", b"none"] if self.box is None else [b"periodic", b"periodic"])
         self.position = _series(particles, "position", (n, 2), unit="m", chunk=self.block)
         self.image = None
-        if self.box is not None:
+        self.edges = None  # the box's sides frame by frame, when a schedule changes them
+        if self.box is not None and any(s.key == "scene.periodic" for s in scene.schedules):
+            self.edges = _series(box, "edges", (2,), unit="m", chunk=self.block)
+            self._edges = np.empty((self.block, 2))
+        elif self.box is not None:
             box.create_dataset("edges", data=self.box).attrs["unit"] = ascii("m")
+        if self.box is not None:
             self.image = _series(particles, "image", (n, 2), dtype=np.int32, chunk=self.block)
             self._image = np.empty((self.block, n, 2), np.int32)
             self._starts, self._counts = model.offsets[:-1], np.diff(model.offsets)
@@ -268,18 +275,22 @@ class TrajectoryWriter:
         self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16 + (8 * n + 5 * b + 48 if self.box is not None else 0)
         self.frames = 0
 
-    def append(self, step: int, state, area, kinetic):
-        """Buffer one frame of `state` (copied); write the block when it is full or old."""
+    def append(self, step: int, state, area, kinetic, box=None):
+        """Buffer one frame of `state` (copied); write the block when it is full or old. `box`: the periodic
+        box's sides in this frame, when a schedule changes them."""
         k = self._count
         self._steps[k] = step
         if self.box is None:
             self._pos[k] = state.pos
         else:  # each blob whole, its centre in the box: the image n = floor(c / L + 1/2) per blob
+            sides = self.box if box is None else np.asarray(box, dtype=np.float64)
             centre = np.add.reduceat(state.pos, self._starts, axis=0) / self._counts[:, None]
-            image = np.repeat(np.floor(centre / self.box + 0.5), self._counts, axis=0)
+            image = np.repeat(np.floor(centre / sides + 0.5), self._counts, axis=0)
             self._image[k] = image
-            self._pos[k] = state.pos - image * self.box
-            self._measure_packing(k, step, state, area)
+            self._pos[k] = state.pos - image * sides
+            if self.edges is not None:
+                self._edges[k] = sides
+            self._measure_packing(k, step, state, area, sides)
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
@@ -296,14 +307,14 @@ class TrajectoryWriter:
         if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
 
-    def _measure_packing(self, k, step, state, area):
+    def _measure_packing(self, k, step, state, area, sides):
         """Frame k's packing_fraction, contacts, rattlers, pressure and stress (sim/packing.py)."""
         virial, touching, count = state.packing
         touching = touching[:count[0]]
         blobs = len(area)
-        sigma = packing.stress(virial, self.dt, self.box) if step > 0 else np.zeros((2, 2))
+        sigma = packing.stress(virial, self.dt, sides) if step > 0 else np.zeros((2, 2))
         out = self._packing
-        out["packing_fraction"][k] = packing.packing_fraction(area, self.box)
+        out["packing_fraction"][k] = packing.packing_fraction(area, sides)
         out["contacts"][k] = packing.contact_counts(touching, blobs)
         out["rattler"][k] = packing.rattlers(touching, blobs)
         out["stress"][k] = sigma
@@ -324,6 +335,7 @@ class TrajectoryWriter:
                               (self.kinetic, self._kinetic[:k]), (self.awake, self._awake[:k]),
                               *((self.static_series[name], self._statics[name][:k]) for name in self._statics),
                               *(((self.image, self._image[:k]),) if self.image is not None else ()),
+                              *(((self.edges, self._edges[:k]),) if self.edges is not None else ()),
                               *((self.packing_series[name], self._packing[name][:k]) for name in self._packing)):
             for name, data in (("value", values), ("step", steps), ("time", steps * self.dt)):
                 ds = group[name]
@@ -365,6 +377,7 @@ class TrajectoryWriter:
                                     (self.awake, AWAKE),
                                     *((g, f"{STATICS}/{n}") for n, g in self.static_series.items()),
                                     *(((self.image, IMAGE),) if self.image is not None else ()),
+                                    *(((self.edges, EDGES),) if self.edges is not None else ()),
                                     *((g, f"observables/{n}") for n, g in self.packing_series.items())):
                     for key in ("value", "step", "time"):
                         ds = group[key]

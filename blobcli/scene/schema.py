@@ -239,9 +239,10 @@ class ScheduleDef:
     """`[[schedule]]`: a property that changes in time, linear between keyframes, the first held before
     them and the last after; applied at the start of each step (t = step × dt)."""
     key: str = key(None, "", "what changes: blob.NAME.KEY (NAME a blob's name, or NAME_* for a grid's copies; "
-                   "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + ") or scene.gravity", "str")
-    at: tuple = _key(None, "", "keyframes [t s, value] ([t, gx, gy] for gravity); `scale` is a linear size "
-                    "factor, 1 the size written: rest edge lengths × s, target area × s²", "keyframes")
+                   "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + "), scene.gravity or scene.periodic", "str")
+    at: tuple = _key(None, "", "keyframes [t s, value] ([t, gx, gy] for gravity, [t, Lx, Ly] for the periodic "
+                    "box); `scale` is a linear size factor, 1 the size written: rest edge lengths × s, target area "
+                    "× s²", "keyframes")
 
     @property
     def blob_key(self) -> str:
@@ -625,7 +626,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         if missing:
             problems.add(path, f"needs {' and '.join(missing)}", show_got=False)
             continue
-        if _check_schedule(s, names, path, problems):
+        if _check_schedule(s, names, path, problems, settings.periodic is not None):
             schedule_defs.append(s)
     targets = [(s.key, tuple(schedule_targets(s, names))) for s in schedule_defs]
     for i, (k, blobs_hit) in enumerate(targets):
@@ -664,8 +665,8 @@ def expanded_names(blobs) -> list[str]:
 
 
 def schedule_targets(s: ScheduleDef, names: list[str]) -> list[int]:
-    """The blob indices a blob schedule applies to (all of them for scene.gravity: none)."""
-    if s.key == "scene.gravity":
+    """The blob indices a blob schedule applies to (none for a scene.* schedule)."""
+    if s.key.startswith("scene."):
         return []
     import fnmatch
     pattern = s.key[len("blob."):].rsplit(".", 1)[0]
@@ -676,16 +677,24 @@ SCHEDULE_CHECKS = {"mass": positive, "pressure": positive, "scale": positive, "f
                    "static_friction": nonnegative, "restitution": unit_interval}
 
 
-def _check_schedule(s: ScheduleDef, names, path, problems: _Problems) -> bool:
+def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: bool) -> bool:
     width = len(s.at[0])
-    if s.key == "scene.gravity":
+    if s.key in ("scene.gravity", "scene.periodic"):
+        what = s.key.split(".")[1]
         if width != 3:
-            problems.add(path + ("at",), "gravity keyframes are [t, gx, gy]: 3 numbers each", list(s.at[0]))
+            problems.add(path + ("at",), f"{what} keyframes are [t, {'gx, gy' if what == 'gravity' else 'Lx, Ly'}]: "
+                         "3 numbers each", list(s.at[0]))
+            return False
+        if what == "periodic" and not periodic:
+            problems.add(path + ("key",), "only in a periodic box ([scene] periodic)", s.key)
+            return False
+        if what == "periodic" and min(min(row[1:]) for row in s.at) <= 0.0:
+            problems.add(path + ("at",), "box sides must be > 0", [list(row) for row in s.at])
             return False
         return True
     parts = s.key.split(".")
     if len(parts) < 3 or parts[0] != "blob":
-        problems.add(path + ("key",), "must be blob.NAME.KEY or scene.gravity", s.key)
+        problems.add(path + ("key",), "must be blob.NAME.KEY, scene.gravity or scene.periodic", s.key)
         return False
     if parts[-1] not in SCHEDULED_BLOB_KEYS:
         hint = difflib.get_close_matches(parts[-1], SCHEDULED_BLOB_KEYS, n=1)
@@ -748,6 +757,10 @@ def _check_box(scene: Scene, problems: _Problems):
     if min(scene.settings.periodic) < PERIODIC_SIDE * largest:
         problems.add(("scene", "periodic"), f"each side must be at least {PERIODIC_SIDE:g} × the largest blob's "
                      f"radius ({PERIODIC_SIDE * largest:.4g} m)", list(scene.settings.periodic))
+    for i, s in enumerate(scene.schedules):  # (a scheduled scale may grow the blobs on top: not checked)
+        if s.key == "scene.periodic" and min(min(row[1:]) for row in s.at) < PERIODIC_SIDE * largest:
+            problems.add(("schedule", i, "at"), f"box sides must be at least {PERIODIC_SIDE:g} × the largest blob's "
+                         f"radius ({PERIODIC_SIDE * largest:.4g} m)", show_got=False)
 
 
 def run_length_problems(scene: Scene) -> list[tuple[tuple, str]]:

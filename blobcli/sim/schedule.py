@@ -9,8 +9,12 @@ takes the same values as an uninterrupted one. The model stays as the scene buil
     pressure p, scale s:  target_area = p × rest_area × s²; rest edge lengths and perimeter × s
     friction, static_friction, restitution: the blob's material (combined at each contact as before)
     scene.gravity: the step's settings (g, "up", the rest speed of restitution)
+    scene.periodic: the periodic box's sides L; when they change, each blob moves with the box, its centre
+        c remapped affinely, c <- c L_new / L_old (the whole blob shifted, not stretched; velocities kept:
+        LAMMPS' `fix deform` with `remap x` does the same to its atoms)
 
-A blob whose properties change is woken, every blob when gravity does (a sleeping blob would not feel it).
+A blob whose properties change is woken, every blob when gravity or the box does (a sleeping blob would
+not feel it).
 """
 
 from __future__ import annotations
@@ -34,10 +38,14 @@ class Schedules:
         self.model, self.params = model, params
         self.blob_items = []  # (key, blob indices, times, values)
         self.gravity = None  # (times, gx values, gy values)
+        self.box = None  # (times, Lx values, Ly values)
+        self.current_box = None  # the box of the latest step applied (None: no step yet)
         for s in scene.schedules:
             at = np.array(s.at)
             if s.key == "scene.gravity":
                 self.gravity = (at[:, 0], at[:, 1], at[:, 2])
+            elif s.key == "scene.periodic":
+                self.box = (at[:, 0], at[:, 1], at[:, 2])
             else:
                 self.blob_items.append((s.blob_key, np.array(schedule_targets(s, names), np.int64), at[:, 0],
                                         at[:, 1]))
@@ -49,7 +57,7 @@ class Schedules:
                                  material=a.material.copy())
 
     def __bool__(self) -> bool:
-        return bool(self.blob_items) or self.gravity is not None
+        return bool(self.blob_items) or self.gravity is not None or self.box is not None
 
     def apply(self, step: int, step_settings: StepSettings, state) -> StepSettings:
         """Write every scheduled value at t = step × dt; return the step's settings (gravity). A blob whose
@@ -78,12 +86,37 @@ class Schedules:
                     a.rest_length[o:e] = m.rest_length[o:e] * v
                 a.rest_perimeter[blobs] = m.rest_perimeter[blobs] * v
             a.target_area[blobs] = self.pressure[blobs] * m.rest_area[blobs] * self.scale[blobs] ** 2
-        if self.gravity is None:
+        if self.gravity is None and self.box is None:
             return step_settings
-        times, gx, gy = self.gravity
-        g = np.array([np.interp(t, times, gx), np.interp(t, times, gy)])
-        before = (step - 1) * self.params.dt
-        if g[0] != np.interp(before, times, gx) or g[1] != np.interp(before, times, gy):  # everything is woken
+        params = self.params
+        if self.gravity is not None:
+            params = replace(params, gravity=self._at(step, self.gravity, state))
+        if self.box is not None:
+            box = self._at(step, self.box, state)
+            if self.current_box is None:  # the first step of this run: the box the state was left in
+                times, x, y = self.box
+                before = (step - 1) * self.params.dt
+                self.current_box = (np.array([np.interp(before, times, x), np.interp(before, times, y)]) if step > 0
+                                    else np.array(self.params.box, dtype=np.float64))
+            if np.any(box != self.current_box):
+                _remap(state, m.offsets, self.current_box, box)
+            self.current_box = box
+            params = replace(params, box=(float(box[0]), float(box[1])))
+        return settings(m, params)
+
+    def _at(self, step, keyframes, state) -> np.ndarray:
+        """A two-valued schedule's values at t = step × dt; every blob is woken when they change."""
+        times, x, y = keyframes
+        t, before = step * self.params.dt, (step - 1) * self.params.dt
+        now = np.array([np.interp(t, times, x), np.interp(t, times, y)])
+        if now[0] != np.interp(before, times, x) or now[1] != np.interp(before, times, y):
             state.awake[:] = 1
             state.still[:] = 0.0
-        return settings(m, replace(self.params, gravity=g))
+        return now
+
+
+def _remap(state, offsets, old, new) -> None:
+    """Move each blob with the box, old sides to new: its centre c (vertex average) to c new / old."""
+    counts = np.diff(offsets)
+    centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
+    state.pos[...] += np.repeat(centre * (new / old - 1.0), counts, axis=0)
