@@ -56,10 +56,12 @@ def _export(h5_path, out: Path, fmt: str) -> int:
         blob_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
         steps, times = pos["step"][...], pos["time"][...]
         target = p["target_area"][...]
-        box = None  # a periodic box (format 8): its sides, frame by frame
+        box = None  # a periodic box (format 8): its box vectors (rows), frame by frame, (frames, 2, 2)
         if IMAGE in f:
             edges = f[EDGES]
             box = edges["value"][...] if isinstance(edges, h5py.Group) else np.tile(edges[...], (len(steps), 1))
+            if box.ndim == 2:  # sides: a rectangular box
+                box = np.stack([np.diag(sides) for sides in box])
         blocks = _blocks(pos["value"], f[IMAGE]["value"] if box is not None else None, box, f[AREA]["value"],
                          f[KINETIC]["value"], target)
         if fmt == "xdmf":
@@ -75,7 +77,7 @@ def _blocks(position, image, box, area, kinetic, target):
     for start in range(0, position.shape[0], BLOCK_FRAMES):
         stop = start + BLOCK_FRAMES
         pos = position[start:stop]
-        unwrapped = pos if image is None else pos + image[start:stop] * box[start:stop, None, :]
+        unwrapped = pos if image is None else pos + np.einsum("fni,fij->fnj", image[start:stop], box[start:stop])
         yield pos, unwrapped, (area[start:stop] - target) / target, kinetic[start:stop]
 
 
@@ -121,8 +123,10 @@ def _xyz(out: Path, blob_of, steps, times, blocks, box):
     with open(out, "w") as f:
         for pos, _, _, _ in blocks:
             for frame in range(len(pos)):
-                cell = 'pbc="F F F"' if box is None else \
-                    f'Lattice="{box[k, 0]!r} 0.0 0.0 0.0 {box[k, 1]!r} 0.0 0.0 0.0 1.0" pbc="T T F"'
+                cell = 'pbc="F F F"'
+                if box is not None:  # the lattice's rows: e_1, e_2 (z: 1, not periodic)
+                    e = box[k].tolist()
+                    cell = f'Lattice="{e[0][0]!r} {e[0][1]!r} 0.0 {e[1][0]!r} {e[1][1]!r} 0.0 0.0 0.0 1.0" pbc="T T F"'
                 f.write(f"{n}\nProperties=species:S:1:pos:R:3:blob:I:1 step={int(steps[k])} time={float(times[k])!r} "
                         f"{cell}\n")
                 lines = [f"X {x!r} {y!r} 0.0 {b}" for (x, y), b in zip(pos[frame].tolist(), blob_of.tolist())]

@@ -44,13 +44,16 @@ LAYOUT = """\
     box                      attrs: dimension = 2, boundary = ["none", "none"], or in a periodic box
                              ["periodic", "periodic"] with
       edges                  float64 [2]  unit "m": the box's sides L_x, L_y; the box is [-L/2, L/2) (format 8);
-                             a box that changes (a scene.periodic schedule): {value [frames, 2], step, time}
+                             a box that changes (a scene.periodic schedule): {value [frames, 2], step, time};
+                             a sheared box (scene.shear): {value [frames, 2, 2], step, time}, its rows the
+                             box vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) (Lees–Edwards)
     position/value           float64 [frames, vertices, 2]  unit "m"; in a periodic box each blob is whole, moved
                              by whole box sides so that its centre (vertex average) lies in the box
     position/step            int64   [frames]
     position/time            float64 [frames]  unit "s" (= step × dt)
-    image/{value,step,time}  value int32 [frames, vertices, 2] (periodic box only): the box sides each vertex was
-                             moved by, so that position + image × edges is the unwrapped, continuous trajectory
+    image/{value,step,time}  value int32 [frames, vertices, 2] (periodic box only): the box vectors each vertex
+                             was moved by, so that position + image × edges (n_x e_1 + n_y e_2 when sheared) is
+                             the unwrapped trajectory, continuous but for the box's own remaps
     mass                     float64 [vertices]  unit "kg" (each vertex's share of its blob)
 /connectivity
     edges                    int64 [vertices, 2]: vertex index pairs, each ring's closed polyline
@@ -205,10 +208,12 @@ class TrajectoryWriter:
         box.attrs["boundary"] = np.array([b"none", b"none"] if self.box is None else [b"periodic", b"periodic"])
         self.position = _series(particles, "position", (n, 2), unit="m", chunk=self.block)
         self.image = None
-        self.edges = None  # the box's sides frame by frame, when a schedule changes them
-        if self.box is not None and any(s.key == "scene.periodic" for s in scene.schedules):
-            self.edges = _series(box, "edges", (2,), unit="m", chunk=self.block)
-            self._edges = np.empty((self.block, 2))
+        self.edges = None  # the box's sides (or vectors, sheared) frame by frame, when a schedule changes them
+        self.sheared = any(s.key == "scene.shear" for s in scene.schedules)
+        if self.box is not None and any(s.key in ("scene.periodic", "scene.shear") for s in scene.schedules):
+            shape = (2, 2) if self.sheared else (2,)
+            self.edges = _series(box, "edges", shape, unit="m", chunk=self.block)
+            self._edges = np.empty((self.block, *shape))
         elif self.box is not None:
             box.create_dataset("edges", data=self.box).attrs["unit"] = ascii("m")
         if self.box is not None:
@@ -275,21 +280,26 @@ class TrajectoryWriter:
         self._frame_bytes = 8 * (2 * n + 2 * b + 6 * S) + b + 16 + (8 * n + 5 * b + 48 if self.box is not None else 0)
         self.frames = 0
 
-    def append(self, step: int, state, area, kinetic, box=None):
-        """Buffer one frame of `state` (copied); write the block when it is full or old. `box`: the periodic
-        box's sides in this frame, when a schedule changes them."""
+    def append(self, step: int, state, area, kinetic, box=None, shear=None):
+        """Buffer one frame of `state` (copied); write the block when it is full or old. `box`, `shear`: the
+        periodic box's sides and shear strain γ in this frame, when schedules change them."""
         k = self._count
         self._steps[k] = step
         if self.box is None:
             self._pos[k] = state.pos
-        else:  # each blob whole, its centre in the box: the image n = floor(c / L + 1/2) per blob
+        else:  # each blob whole, its centre in the box: n_y = floor(c_y / L_y + 1/2), then n_x along its row
             sides = self.box if box is None else np.asarray(box, dtype=np.float64)
+            tilt = (shear or 0.0) * sides[1]  # γ L_y
             centre = np.add.reduceat(state.pos, self._starts, axis=0) / self._counts[:, None]
-            image = np.repeat(np.floor(centre / sides + 0.5), self._counts, axis=0)
+            ny = np.floor(centre[:, 1] / sides[1] + 0.5)
+            nx = np.floor((centre[:, 0] - ny * tilt) / sides[0] + 0.5)
+            image = np.repeat(np.stack([nx, ny], axis=1), self._counts, axis=0)
             self._image[k] = image
             self._pos[k] = state.pos - image * sides
+            if tilt != 0.0:
+                self._pos[k, :, 0] -= image[:, 1] * tilt
             if self.edges is not None:
-                self._edges[k] = sides
+                self._edges[k] = [[sides[0], 0.0], [tilt, sides[1]]] if self.sheared else sides
             self._measure_packing(k, step, state, area, sides)
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic

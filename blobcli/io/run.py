@@ -126,7 +126,7 @@ def _run_chosen(scene, path, progress, resume, announce, model, state, params, c
             target = np.abs(live.target_area)
             worst = max(worst, float(np.max(np.abs(np.abs(area) - target) / target)))
         try:
-            writer.append(n, state, area, kinetic, schedules.current_box)
+            writer.append(n, state, area, kinetic, schedules.current_box, schedules.current_shear)
         except DiskFull:
             raise
         except (OSError, RuntimeError) as e:

@@ -239,10 +239,11 @@ class ScheduleDef:
     """`[[schedule]]`: a property that changes in time, linear between keyframes, the first held before
     them and the last after; applied at the start of each step (t = step × dt)."""
     key: str = key(None, "", "what changes: blob.NAME.KEY (NAME a blob's name, or NAME_* for a grid's copies; "
-                   "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + "), scene.gravity or scene.periodic", "str")
+                   "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + "), scene.gravity, scene.periodic or "
+                   "scene.shear", "str")
     at: tuple = _key(None, "", "keyframes [t s, value] ([t, gx, gy] for gravity, [t, Lx, Ly] for the periodic "
-                    "box); `scale` is a linear size factor, 1 the size written: rest edge lengths × s, target area "
-                    "× s²", "keyframes")
+                    "box, [t, γ] for its shear strain); `scale` is a linear size factor, 1 the size written: rest "
+                    "edge lengths × s, target area × s²", "keyframes")
 
     @property
     def blob_key(self) -> str:
@@ -679,6 +680,14 @@ SCHEDULE_CHECKS = {"mass": positive, "pressure": positive, "scale": positive, "f
 
 def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: bool) -> bool:
     width = len(s.at[0])
+    if s.key == "scene.shear":
+        if width != 2:
+            problems.add(path + ("at",), "shear keyframes are [t, γ]: 2 numbers each", list(s.at[0]))
+            return False
+        if not periodic:
+            problems.add(path + ("key",), "only in a periodic box ([scene] periodic)", s.key)
+            return False
+        return True
     if s.key in ("scene.gravity", "scene.periodic"):
         what = s.key.split(".")[1]
         if width != 3:
@@ -694,7 +703,7 @@ def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: 
         return True
     parts = s.key.split(".")
     if len(parts) < 3 or parts[0] != "blob":
-        problems.add(path + ("key",), "must be blob.NAME.KEY, scene.gravity or scene.periodic", s.key)
+        problems.add(path + ("key",), "must be blob.NAME.KEY, scene.gravity, scene.periodic or scene.shear", s.key)
         return False
     if parts[-1] not in SCHEDULED_BLOB_KEYS:
         hint = difflib.get_close_matches(parts[-1], SCHEDULED_BLOB_KEYS, n=1)

@@ -158,9 +158,9 @@ def _find_pairs_periodic(center, radius, max_pairs, box):
     cell = 2.0 * radius.max() * (1.0 + BROAD_MARGIN)
     nx, ny = max(1, int(box[0] / cell)), max(1, int(box[1] / cell))
     cell_of = np.empty(B, np.int64)
-    for b in range(B):
-        fx = center[b, 0] / box[0] + 0.5
+    for b in range(B):  # the centre's place in the box: its row of images first, then along x in that row
         fy = center[b, 1] / box[1] + 0.5
+        fx = (center[b, 0] - math.floor(fy) * box[2]) / box[0] + 0.5
         ix = min(int((fx - math.floor(fx)) * nx), nx - 1)
         iy = min(int((fy - math.floor(fy)) * ny), ny - 1)
         cell_of[b] = iy * nx + ix
@@ -181,13 +181,15 @@ def _find_pairs_periodic(center, radius, max_pairs, box):
 
 @inline_kernel
 def _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill, box):
-    """_near_blobs in a periodic box."""
+    """_near_blobs in a periodic box. Across the top and bottom edges of a sheared box the row of
+    images is shifted along x by γ L_y: there every cell of the row is looked at."""
     count = 0
     ix, iy = cell_of[a] % nx, cell_of[a] // nx
     for dy in range(-1, 2) if ny >= 3 else range(ny):
         jy = (iy + dy) % ny if ny >= 3 else dy
-        for dx in range(-1, 2) if nx >= 3 else range(nx):
-            jx = (ix + dx) % nx if nx >= 3 else dx
+        whole_row = nx < 3 or (box[2] != 0.0 and (iy + dy < 0 or iy + dy >= ny or ny < 3))
+        for dx in range(nx) if whole_row else range(-1, 2):
+            jx = dx if whole_row else (ix + dx) % nx
             c = jy * nx + jx
             for k in range(start[c], start[c + 1]):
                 b = order[k]
@@ -205,12 +207,15 @@ def _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs,
 @inline_kernel
 def image(center, a, b, box):
     """(s_x, s_y), the shift that carries blob a to the image of it nearest blob b in a periodic box
-    (box = (L_x, L_y)): s = L round((c_b - c_a) / L), so a vertex p of a meets b's vertices as p + s.
-    (0, 0) in an open world (box = (0, 0)): no arithmetic, so an open world keeps its bits."""
+    (box = (L_x, L_y, γ L_y)), so that a vertex p of a meets b's vertices as p + s. The box's images
+    lie at n_x e_1 + n_y e_2, e_1 = (L_x, 0), e_2 = (γ L_y, L_y) (Lees–Edwards: the row of images above
+    is shifted by γ L_y; γ = 0: a plain box): n_y = round(d_y / L_y), n_x = round((d_x - n_y γ L_y) / L_x),
+    d = c_b - c_a. (0, 0) in an open world (box = (0, 0, 0)): no arithmetic, so it keeps its bits."""
     if box[0] == 0.0:
         return 0.0, 0.0
-    return (box[0] * math.floor((center[b, 0] - center[a, 0]) / box[0] + 0.5),
-            box[1] * math.floor((center[b, 1] - center[a, 1]) / box[1] + 0.5))
+    ny = math.floor((center[b, 1] - center[a, 1]) / box[1] + 0.5)
+    nx = math.floor((center[b, 0] - center[a, 0] - ny * box[2]) / box[0] + 0.5)
+    return nx * box[0] + ny * box[2], ny * box[1]
 
 
 @inline_kernel

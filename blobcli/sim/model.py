@@ -51,6 +51,7 @@ class Params:
     time_to_sleep: float = 1.0  # s ... for this long
     box: tuple = (0.0, 0.0)  # m: the periodic box's sides [Lx, Ly]; (0, 0): an open world
     drag: float = 0.0  # 1/s: viscous drag on all motion
+    shear: float = 0.0  # the periodic box's Lees–Edwards shear strain γ (a schedule's)
 
 
 @dataclass(frozen=True)

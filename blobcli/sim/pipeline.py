@@ -102,6 +102,7 @@ class StepSettings(NamedTuple):
     time_to_sleep: float  # s ... for this long
     box_x: float  # m: the periodic box's sides; 0: an open world
     box_y: float
+    box_tilt: float  # m: γ L_y, how far the image above is shifted along x (Lees–Edwards shear γ)
     config: Configuration
 
 
@@ -123,7 +124,7 @@ def _advance(steps, state, model, settings, clock):
     awake_count = np.count_nonzero(s.awake)
     t = _lap(clock, -1, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
-    box = (c.box_x, c.box_y)  # the periodic box; (0, 0): an open world
+    box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
     for n in range(steps):
         if awake_count == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
             s.steps_done[0] += 1
@@ -277,7 +278,8 @@ def settings(model: Model, params: Params) -> StepSettings:
                         drag=params.drag,
                         up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
                         sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep,
-                        box_x=float(params.box[0]), box_y=float(params.box[1]), config=configuration(model, params))
+                        box_x=float(params.box[0]), box_y=float(params.box[1]),
+                        box_tilt=float(params.shear * params.box[1]), config=configuration(model, params))
 
 
 NO_CLOCK = np.zeros(0)

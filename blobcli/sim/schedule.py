@@ -12,6 +12,9 @@ takes the same values as an uninterrupted one. The model stays as the scene buil
     scene.periodic: the periodic box's sides L; when they change, each blob moves with the box, its centre
         c remapped affinely, c <- c L_new / L_old (the whole blob shifted, not stretched; velocities kept:
         LAMMPS' `fix deform` with `remap x` does the same to its atoms)
+    scene.shear: the box's Lees–Edwards shear strain γ: the row of images above is shifted along x by
+        γ L_y, and when γ changes by Δγ each blob's centre moves affinely, c_x <- c_x + Δγ c_y: quasi-static
+        simple shear, strain-controlled (the same remap)
 
 A blob whose properties change is woken, every blob when gravity or the box does (a sleeping blob would
 not feel it).
@@ -39,6 +42,8 @@ class Schedules:
         self.blob_items = []  # (key, blob indices, times, values)
         self.gravity = None  # (times, gx values, gy values)
         self.box = None  # (times, Lx values, Ly values)
+        self.shear = None  # (times, γ values)
+        self.current_shear = None  # γ of the latest step applied (None: no step yet)
         self.current_box = None  # the box of the latest step applied (None: no step yet)
         for s in scene.schedules:
             at = np.array(s.at)
@@ -46,6 +51,8 @@ class Schedules:
                 self.gravity = (at[:, 0], at[:, 1], at[:, 2])
             elif s.key == "scene.periodic":
                 self.box = (at[:, 0], at[:, 1], at[:, 2])
+            elif s.key == "scene.shear":
+                self.shear = (at[:, 0], at[:, 1])
             else:
                 self.blob_items.append((s.blob_key, np.array(schedule_targets(s, names), np.int64), at[:, 0],
                                         at[:, 1]))
@@ -57,7 +64,7 @@ class Schedules:
                                  material=a.material.copy())
 
     def __bool__(self) -> bool:
-        return bool(self.blob_items) or self.gravity is not None or self.box is not None
+        return bool(self.blob_items) or any(x is not None for x in (self.gravity, self.box, self.shear))
 
     def apply(self, step: int, step_settings: StepSettings, state) -> StepSettings:
         """Write every scheduled value at t = step × dt; return the step's settings (gravity). A blob whose
@@ -86,9 +93,12 @@ class Schedules:
                     a.rest_length[o:e] = m.rest_length[o:e] * v
                 a.rest_perimeter[blobs] = m.rest_perimeter[blobs] * v
             a.target_area[blobs] = self.pressure[blobs] * m.rest_area[blobs] * self.scale[blobs] ** 2
-        if self.gravity is None and self.box is None:
+        if self.gravity is None and self.box is None and self.shear is None:
             return step_settings
         params = self.params
+        if self.shear is not None and self.current_shear is None:  # this run's first step: the strain it was left in
+            times, values = self.shear
+            self.current_shear = float(np.interp((step - 1) * self.params.dt, times, values)) if step > 0 else 0.0
         if self.gravity is not None:
             params = replace(params, gravity=self._at(step, self.gravity, state))
         if self.box is not None:
@@ -99,9 +109,18 @@ class Schedules:
                 self.current_box = (np.array([np.interp(before, times, x), np.interp(before, times, y)]) if step > 0
                                     else np.array(self.params.box, dtype=np.float64))
             if np.any(box != self.current_box):
-                _remap(state, m.offsets, self.current_box, box)
+                _remap(state, m.offsets, self.current_box, box, self.current_shear or 0.0)
             self.current_box = box
             params = replace(params, box=(float(box[0]), float(box[1])))
+        if self.shear is not None:
+            times, values = self.shear
+            gamma = float(np.interp(step * self.params.dt, times, values))
+            if gamma != self.current_shear:
+                _shear(state, m.offsets, gamma - self.current_shear)
+                state.awake[:] = 1
+                state.still[:] = 0.0
+            self.current_shear = gamma
+            params = replace(params, shear=gamma)
         return settings(m, params)
 
     def _at(self, step, keyframes, state) -> np.ndarray:
@@ -115,8 +134,19 @@ class Schedules:
         return now
 
 
-def _remap(state, offsets, old, new) -> None:
-    """Move each blob with the box, old sides to new: its centre c (vertex average) to c new / old."""
+def _shear(state, offsets, d_gamma) -> None:
+    """Move each blob with a simple shear of the box by Δγ: its centre c_x += Δγ c_y (the blob shifted whole)."""
     counts = np.diff(offsets)
     centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
-    state.pos[...] += np.repeat(centre * (new / old - 1.0), counts, axis=0)
+    state.pos[:, 0] += np.repeat(centre[:, 1] * d_gamma, counts)
+
+
+def _remap(state, offsets, old, new, gamma) -> None:
+    """Move each blob with the box, old sides to new: its centre c (vertex average) by the affine map F that
+    carries the old box's edge vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) to the new ones:
+    c_x <- r_x c_x + γ (r_y - r_x) c_y, c_y <- r_y c_y, r = new / old (c <- c new / old when γ = 0)."""
+    counts = np.diff(offsets)
+    centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
+    r = new / old
+    moved = np.stack([r[0] * centre[:, 0] + gamma * (r[1] - r[0]) * centre[:, 1], r[1] * centre[:, 1]], axis=1)
+    state.pos[...] += np.repeat(moved - centre, counts, axis=0)

@@ -149,7 +149,7 @@ def deepest_overlap(state, model) -> float:
     from ..geometry import depth_inside_polygon
     from ..sim.collide import find_blob_pairs
     pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
-                                state.blob_contact_depth, state.c_hit, (0.0, 0.0))
+                                state.blob_contact_depth, state.c_hit, (0.0, 0.0, 0.0))
     ring = [state.pos[model.offsets[b]:model.offsets[b + 1]] for b in range(model.blob_count)]
     return max((float(depth_inside_polygon(ring[x], ring[y]).max()) for a, b in pairs for x, y in ((a, b), (b, a))),
                default=0.0)

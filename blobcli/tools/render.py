@@ -34,6 +34,22 @@ def draw_statics(ax, statics, lo, hi, position=None, angle=None):
         ax.fill(line[:, 0], line[:, 1], color="0.55", zorder=1)
 
 
+def _boxes(f, frames: int):
+    """The periodic box's corners in each frame, (frames, 4, 2), or None in an open world: ±e_1/2 ± e_2/2 with the
+    box vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) (a parallelogram when sheared)."""
+    import h5py
+
+    from ..io.h5md import EDGES, IMAGE
+    if IMAGE not in f:
+        return None
+    edges = f[EDGES]
+    e = edges["value"][...] if isinstance(edges, h5py.Group) else np.tile(edges[...], (frames, 1))
+    if e.ndim == 2:  # sides: a rectangle
+        e = np.stack([np.diag(sides) for sides in e])
+    signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) / 2
+    return np.einsum("ck,fkj->fcj", signs, e)
+
+
 def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     """Draw `frames` evenly spaced frames of a trajectory side by side into a PNG."""
     import matplotlib
@@ -42,14 +58,15 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     t = read_trajectory(h5_path)
     with open_trajectory(h5_path) as f:
         scene = stored_scene(f, h5_path)
+        boxes = _boxes(f, len(t.step))
     picks = np.unique(np.linspace(0, len(t.step) - 1, frames).round().astype(int))
     finite = t.position[np.isfinite(t.position).all(axis=2)]
     if len(finite) == 0:
         raise TrajectoryError(f"{h5_path}: no vertex has a finite position in any frame: nothing to draw")
     lo, hi = finite.min(axis=0), finite.max(axis=0)
-    box = np.array(scene.settings.periodic) / 2 if scene.settings.periodic is not None else None
-    if box is not None:  # frame the whole periodic box
-        lo, hi = np.minimum(lo, -box), np.maximum(hi, box)
+    if boxes is not None:  # frame the whole periodic box, in every frame
+        corners = boxes.reshape(-1, 2)
+        lo, hi = np.minimum(lo, corners.min(axis=0)), np.maximum(hi, corners.max(axis=0))
     pad = 0.08 * max(float(np.max(hi - lo)), 0.5)
     lo, hi = lo - pad, hi + pad
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
@@ -59,8 +76,8 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     for ax, f in zip(axes[0], picks):
         poses = (t.statics["position"][f], t.statics["angle"][f]) if t.statics else (None, None)
         draw_statics(ax, scene.statics, lo, hi, *poses)
-        if box is not None:
-            ax.add_patch(plt.Rectangle(-box, *(2 * box), fill=False, ec="0.5", lw=0.8, ls="--", zorder=1))
+        if boxes is not None:
+            ax.add_patch(plt.Polygon(boxes[f], closed=True, fill=False, ec="0.5", lw=0.8, ls="--", zorder=1))
         for b in range(len(t.offsets) - 1):
             ring = t.position[f, t.offsets[b]:t.offsets[b + 1]]
             ax.fill(ring[:, 0], ring[:, 1], color=colors[b], alpha=0.85, lw=0.6, ec="0.15", zorder=2)
