@@ -197,8 +197,10 @@ def momentum_of(model, state, b):
 
 
 def test_drag_slows_all_motion_as_exp_minus_drag_t_and_turns_sleeping_off():
+    # (a floor far below, out of reach: the step built for it is the one the suite's floor tests compile)
     text = ("[scene]\ngravity = [0.0, 0.0]\ndrag = 2.0\n[[blob]]\ncenter = [0.0, 0.0]\nradius = 0.3\n"
-            "velocity = [1.0, 0.5]\nangular_velocity = 3.0\n")
+            "velocity = [1.0, 0.5]\nangular_velocity = 3.0\n"
+            '[[static]]\nkind = "plane"\npoint = [0.0, -100.0]\nnormal = [0.0, 1.0]\n')
     sc = parse_scene(text)
     model, state = build(sc)
     params = build_params(sc)
@@ -211,11 +213,11 @@ def test_drag_slows_all_motion_as_exp_minus_drag_t_and_turns_sleeping_off():
     assert spin == pytest.approx(3.0 * np.exp(-2.0), rel=1e-3)  # spinning is slowed too (not by damping alone)
 
 
-SHRINK = """[scene]
+SQUEEZE = """[scene]
 gravity = [0.0, 0.0]
 periodic = [3.0, 3.0]
 seed = 2
-steps = 90
+{scene}
 [[blob]]
 radius = 0.2
 vertices = 16
@@ -223,8 +225,9 @@ count = 24
 friction = 0.0
 [[schedule]]
 key = "scene.periodic"
-at = [[0.0, 3.0, 3.0], [1.0, 1.9, 1.95]]
+at = [[0.0, 3.0, 3.0], [1.0, {lx}, {ly}]]
 """
+SHRINK = SQUEEZE.format(scene="steps = 90", lx=1.9, ly=1.95)
 
 
 def test_a_scheduled_box_shrinks_and_carries_the_blobs_with_it(tmp_path):
@@ -304,27 +307,11 @@ def test_across_a_sheared_boxs_top_edge_blobs_meet_the_image_shifted_by_gamma_ly
 @pytest.mark.slow
 def test_a_jammed_packing_resists_shear_and_an_unjammed_one_does_not(tmp_path):
     """24 blobs squeezed to φ = 0.86 (drag 5/s), held 3 s, then sheared to γ = 0.03 in 3 s: the shear stress
-    σ_xy rises over the first 0.01 of strain (measured 0.088 → 0.170 N/m, then it yields: 0.108 at 0.055);
+    σ_xy rises over the first 0.01 of strain (measured 0.088 → 0.170 N/m; run on to γ = 0.03 it yields, 0.108);
     at φ = 0.43 it stays below 1e-3 of the jammed packing's pressure (0.83 N/m)."""
     from blobcli import simulate
-    text = """[scene]
-gravity = [0.0, 0.0]
-periodic = [3.0, 3.0]
-seed = 2
-drag = 5.0
-duration = 5.0
-[[blob]]
-radius = 0.2
-vertices = 16
-count = 24
-friction = 0.0
-[[schedule]]
-key = "scene.periodic"
-at = [[0.0, 3.0, 3.0], [1.0, {L}, {L}]]
-[[schedule]]
-key = "scene.shear"
-at = [[4.0, 0.0], [7.0, 0.03]]
-"""
+    text = SQUEEZE.format(scene="drag = 5.0\nduration = 5.0", lx="{L}", ly="{L}") + (
+        '[[schedule]]\nkey = "scene.shear"\nat = [[4.0, 0.0], [7.0, 0.03]]\n')
     found = {}
     for name, side in (("jammed", 1.85), ("loose", 2.6)):
         out = tmp_path / f"{name}.h5"
