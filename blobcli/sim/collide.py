@@ -41,6 +41,12 @@ Scenes of 64 blobs or more are cut into vertical strips (see _resolve), and cont
 share no blob run in parallel; smaller scenes keep one strip, so their contacts go in vertex
 order. Either way the order is set by the scene, not by the number of threads.
 
+Periodic box (`[scene] periodic`, with Lees–Edwards shear γ): positions stay continuous, and every
+stage that reads a partner's vertices or centre meets it as the image nearest it (`image`: a vertex p
+of a meets b's vertices as p + s); the broad phase tiles the box and wraps round it
+(`_find_pairs_periodic`). In an open world s = 0 and no arithmetic is done: the same bits. Each
+contact's impulses also go into the blobs' virial there, for the stress (sim/packing.py).
+
 Deep overlap (a blob driven far into another, or spawned overlapping): when either centre is
 inside the other polygon, vertex–edge pushes have no sensible "nearest" side. Then, as the
 seed author's own code does, a line perpendicular to c_B - c_A splits the two, placed at
