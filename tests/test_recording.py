@@ -111,3 +111,21 @@ def test_scene_key_and_view_without_display(tmp_path):
     assert r.returncode == 2 and "no such file" in r.stderr
     r = blobsim("replay", scene)
     assert r.returncode == 2 and "not a readable HDF5 file" in r.stderr
+
+
+def test_a_growing_blobs_area_error_is_measured_against_its_scheduled_target(tmp_path):
+    """A blob scaled 1 -> 1.3 over 1 s: its area grows 1.69× on purpose. The recording's area error follows the
+    schedule's target (it read 0.69 against the scene's when only the scene's target was known)."""
+    import rerun.chunk as rc
+    (tmp_path / "grow.toml").write_text("[scene]\ngravity = [0.0, 0.0]\nsteps = 90\n[[blob]]\nname = \"b\"\n"
+                                        "center = [0.0, 0.0]\nradius = 0.3\n[[schedule]]\nkey = \"blob.b.scale\"\n"
+                                        "at = [[0.0, 1.0], [1.0, 1.3]]\n")
+    r = blobsim("run", tmp_path / "grow.toml", "-o", tmp_path / "g.h5", "--rerun", "-q")
+    assert r.returncode == 0, r.stderr
+    worst = []
+    for chunk in rc.RrdReader(str(tmp_path / "g.rrd")).stream().to_chunks():
+        if chunk.entity_path == "/series/summary/area_error/max" and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            column = [name for name in batch.column_names if "scalar" in name.lower()][0]
+            worst += [v[0] for v in batch.column(column).to_pylist()]
+    assert len(worst) == 91 and max(worst) < 0.01

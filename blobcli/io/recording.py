@@ -131,14 +131,16 @@ class RerunRecorder:
         self._statics = []
         self.frames = 0
 
-    def append(self, step: int, pos, area, kinetic, awake, statics=None):
+    def append(self, step: int, pos, area, kinetic, awake, statics=None, target=None):
         """Buffer one frame: positions (N, 2), signed or positive areas (B,), kinetic energy (B,), awake (B,),
-        and the colliders' recorded (position (S, 2), angle (S,) deg, force (S, 2)), or None if none move."""
+        and the colliders' recorded (position (S, 2), angle (S,) deg, force (S, 2)), or None if none move;
+        `target`: the blobs' target areas in this frame, when schedules change them (else the scene's)."""
         self._steps.append(step)
         self._statics.append(statics)
         self._awake.append(np.asarray(awake, dtype=bool))
         self._pos.append(np.asarray(pos, dtype=np.float32))
-        self._area_error.append((np.abs(area) - self.target) / self.target)
+        target = self.target if target is None else target
+        self._area_error.append((np.abs(area) - target) / target)
         self._kinetic.append(np.asarray(kinetic, dtype=np.float64))
         if len(self._steps) >= BATCH_FRAMES:
             self.flush()
@@ -198,6 +200,11 @@ def replay(h5_path, rrd_path) -> int:
         area, kinetic = f[AREA]["value"], f[KINETIC]["value"]
         awake = f[AWAKE]["value"] if AWAKE in f else np.ones(area.shape, np.uint8)  # formats 1-3: no sleeping
         steps = pos["step"][...]
+        # a schedule of pressure or scale changes what each blob's area should be, frame by frame
+        targets = None
+        if any(s.key.rsplit(".", 1)[-1] in ("pressure", "scale") for s in scene.schedules):
+            from ..sim.schedule import target_areas
+            targets = target_areas(scene, steps)
         reach = np.array([[np.inf, np.inf], [-np.inf, -np.inf]])
         for start in range(0, len(steps), BATCH_FRAMES):  # where the blobs go, to frame the view on
             block = pos["value"][start:start + BATCH_FRAMES].reshape(-1, 2)
@@ -219,7 +226,8 @@ def replay(h5_path, rrd_path) -> int:
                                   if moves else (None, None, None))
                     for i in range(stop - start):
                         recorder.append(int(steps[start + i]), block[i], a[i], k[i], w[i],
-                                        (sp[i], sa[i], sf[i]) if moves else None)
+                                        (sp[i], sa[i], sf[i]) if moves else None,
+                                        None if targets is None else targets[start + i])
             finally:
                 recorder.close()
         return len(steps)

@@ -134,6 +134,20 @@ class Schedules:
         return now
 
 
+def target_areas(scene: Scene, steps) -> np.ndarray:
+    """(frames, B) m²: each blob's target area at each of these steps, as the scene's schedules set it for the
+    step that ended there (step 0: the scene's own): what a recorded frame's area is to be measured against."""
+    from .model import build, build_params
+    model, state = build(scene)  # a throwaway state: applying a schedule may wake or move its blobs
+    schedules = Schedules(scene, model, build_params(scene))
+    out = np.empty((len(steps), model.blob_count))
+    for k, n in enumerate(steps):
+        if n > 0:
+            schedules.apply(int(n) - 1, None, state)
+        out[k] = np.abs(schedules.arrays.target_area)
+    return out
+
+
 def _shear(state, offsets, d_gamma) -> None:
     """Move each blob with a simple shear of the box by Δγ: its centre c_x += Δγ c_y (the blob shifted whole)."""
     counts = np.diff(offsets)
