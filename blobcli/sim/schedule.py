@@ -109,14 +109,14 @@ class Schedules:
                 self.current_box = (np.array([np.interp(before, times, x), np.interp(before, times, y)]) if step > 0
                                     else np.array(self.params.box, dtype=np.float64))
             if np.any(box != self.current_box):
-                _remap(state, m.offsets, self.current_box, box, self.current_shear or 0.0)
+                _carry(state, m.offsets, _box_map(self.current_box, box, self.current_shear or 0.0))
             self.current_box = box
             params = replace(params, box=(float(box[0]), float(box[1])))
         if self.shear is not None:
             times, values = self.shear
             gamma = float(np.interp(step * self.params.dt, times, values))
             if gamma != self.current_shear:
-                _shear(state, m.offsets, gamma - self.current_shear)
+                _carry(state, m.offsets, np.array([[1.0, gamma - self.current_shear], [0.0, 1.0]]))
                 state.awake[:] = 1
                 state.still[:] = 0.0
             self.current_shear = gamma
@@ -148,19 +148,15 @@ def target_areas(scene: Scene, steps) -> np.ndarray:
     return out
 
 
-def _shear(state, offsets, d_gamma) -> None:
-    """Move each blob with a simple shear of the box by Δγ: its centre c_x += Δγ c_y (the blob shifted whole)."""
+def _carry(state, offsets, F) -> None:
+    """Move each blob whole with an affine map of the box: its centre c (vertex average) to F c, F (2, 2)."""
     counts = np.diff(offsets)
     centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
-    state.pos[:, 0] += np.repeat(centre[:, 1] * d_gamma, counts)
+    state.pos[...] += np.repeat(centre @ F.T - centre, counts, axis=0)
 
 
-def _remap(state, offsets, old, new, gamma) -> None:
-    """Move each blob with the box, old sides to new: its centre c (vertex average) by the affine map F that
-    carries the old box's edge vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) to the new ones:
-    c_x <- r_x c_x + γ (r_y - r_x) c_y, c_y <- r_y c_y, r = new / old (c <- c new / old when γ = 0)."""
-    counts = np.diff(offsets)
-    centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
+def _box_map(old, new, gamma) -> np.ndarray:
+    """F carrying the old box's vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) to the new ones, r = new / old:
+    c_x <- r_x c_x + γ (r_y - r_x) c_y, c_y <- r_y c_y (c <- c new / old when γ = 0)."""
     r = new / old
-    moved = np.stack([r[0] * centre[:, 0] + gamma * (r[1] - r[0]) * centre[:, 1], r[1] * centre[:, 1]], axis=1)
-    state.pos[...] += np.repeat(moved - centre, counts, axis=0)
+    return np.array([[r[0], gamma * (r[1] - r[0])], [0.0, r[1]]])
