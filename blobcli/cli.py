@@ -157,6 +157,24 @@ def parser() -> argparse.ArgumentParser:
     for command in (stress, study):
         _cluster_options(command)
 
+    jam = sub.add_parser("jam", help="compress a periodic packing until it jams: phi_J, z_J and pressure",
+                         description="Grows the packing fraction in small steps (the box shrinks), bringing each "
+                                     "packing to rest, and bisects to the packing whose pressure is P (in units "
+                                     "of the blobs' perimeter compliance). Exit 0: every seed jammed; 1: some seed "
+                                     "failed; 2: bad input; 130: interrupted (finished seeds are kept).")
+    jam.add_argument("scene", metavar="SCENE", help="a scene with [scene] periodic and blobs placed with count")
+    from .tools.jam import DEFAULT_PRESSURE  # light: no numpy, numba or dask at import
+    jam.add_argument("--pressure", type=_positive_float, default=DEFAULT_PRESSURE, metavar="P",
+                     help="target pressure p × the blobs' mean perimeter compliance, dimensionless "
+                          f"(default {DEFAULT_PRESSURE:g})")
+    jam.add_argument("--seeds", type=_positive_int, default=1, metavar="K",
+                     help="independent random starts, seeds [scene] seed .. + K - 1 (default 1)")
+    jam.add_argument("-o", "--output", default="outputs/jam", metavar="DIR",
+                     help="trajectories, summary.json and chart go to DIR/<scene name>/ (default outputs/jam)")
+    jam.add_argument("--json", metavar="FILE", help="also write the figures here")
+    _cluster_options(jam)
+    jam.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
     bench = sub.add_parser("bench", help="measure speed on this machine, beside the pymunk peer")
     bench.add_argument("--quick", action="store_true", help="small counts only (seconds, for smoke tests)")
     bench.add_argument("--json", metavar="OUT", help="also write the figures as JSON")
@@ -433,6 +451,37 @@ def cmd_sweep(args) -> int:
     return 130 if interrupted else 1 if failed or ok < len(sweep.points) else 0
 
 
+def cmd_jam(args) -> int:
+    from pathlib import Path
+
+    from .io.notice import announcer
+    from .scene.schema import SceneError, load_scene
+    from .tools import jam as jm
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as e:
+        return _fail(e.problems)
+    problem = jm.jam_problem(scene)
+    if problem:
+        return _fail([f"{args.scene}: {problem}"])
+    out = Path(args.output) / scene.name
+    problems = _output_problems((args.output, "dir"), (out, "dir"), (args.json, "file"))
+    if problems:
+        return _fail(problems)
+    live = not args.quiet and sys.stderr.isatty()
+    rows, interrupted = jm.run_jam(scene, out, args.seeds, args.pressure, args.scheduler, args.workers,
+                                   progress=live, announce=lambda line: print(line, file=sys.stderr),
+                                   compiling=None if args.quiet else announcer(live))
+    figures = jm.summary(rows)
+    jm.write_json(figures, out / "summary.json")
+    if args.json:
+        jm.write_json(figures, Path(args.json))
+    jm.chart(rows, out / "chart.png", args.pressure)
+    print(f"blobsim: {jm.report(figures)}; summary {out / 'summary.json'}, chart {out / 'chart.png'}")
+    ok = sum(r["status"] == "ok" for r in rows)
+    return 130 if interrupted else 1 if ok < args.seeds else 0
+
+
 def cmd_bench(args) -> int:
     problems = _output_problems((args.json, "file"))
     if problems:
@@ -456,7 +505,7 @@ def cmd_compare(args) -> int:
 
 COMMANDS = {"run": cmd_run, "check": cmd_check, "compare": cmd_compare, "replay": cmd_replay, "view": cmd_view,
             "bench": cmd_bench, "render": cmd_render, "stress": cmd_stress,
-            "study": cmd_study, "sweep": cmd_sweep, "export": cmd_export}
+            "study": cmd_study, "sweep": cmd_sweep, "export": cmd_export, "jam": cmd_jam}
 
 
 def main(argv=None) -> int:

@@ -44,7 +44,8 @@ LAYOUT = """\
     box                      attrs: dimension = 2, boundary = ["none", "none"], or in a periodic box
                              ["periodic", "periodic"] with
       edges                  float64 [2]  unit "m": the box's sides L_x, L_y; the box is [-L/2, L/2) (format 8);
-                             a box that changes (a scene.periodic schedule): {value [frames, 2], step, time};
+                             a box that changes (a scene.periodic schedule, or `blobsim jam`'s
+                             compression): {value [frames, 2], step, time};
                              a sheared box (scene.shear): {value [frames, 2, 2], step, time}, its rows the
                              box vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) (Lees–Edwards)
     position/value           float64 [frames, vertices, 2]  unit "m"; in a periodic box each blob is whole, moved
@@ -72,8 +73,8 @@ LAYOUT = """\
     packing_fraction/{value,step,time}  value float64 [frames]: the blobs' area over the box's
     contacts/{value,step,time}        value int32 [frames, blobs]: the blobs each touches (contacts that pushed in
                                       the frame's step's last substep)
-    rattler/{value,step,time}         value uint8 [frames, blobs]: 1 for a rattler (fewer than 3 contacts, removed
-                                      repeatedly)
+    rattler/{value,step,time}         value uint8 [frames, blobs]: 1 for a rattler (fewer than 3 contacts, 2 when
+                                      the blobs have friction; removed repeatedly)
     pressure/{value,step,time}        value float64 [frames]  unit "N m-1": -tr(stress) / 2, > 0 compressed
     stress/{value,step,time}          value float64 [frames, 2, 2]  unit "N m-1": the contact (virial) stress
                                       (1/A) Σ (x - c) ⊗ f over the frame's step, Cauchy: negative compressed
@@ -180,7 +181,9 @@ class TrajectoryWriter:
 
     The caller holds the output lock (blobcli.io.outputs.OutputLock)."""
 
-    def __init__(self, path, scene, model, params):
+    def __init__(self, path, scene, model, params, box_changes: bool = False):
+        """`box_changes`: the periodic box changes from frame to frame though no schedule says so (`blobsim
+        jam` shrinks it): its edges are a time series."""
         from .. import __version__
         self.path = Path(path)
         self.partial = create_partial(self.path)
@@ -210,7 +213,8 @@ class TrajectoryWriter:
         self.image = None
         self.edges = None  # the box's sides (or vectors, sheared) frame by frame, when a schedule changes them
         self.sheared = any(s.key == "scene.shear" for s in scene.schedules)
-        if self.box is not None and any(s.key in ("scene.periodic", "scene.shear") for s in scene.schedules):
+        if self.box is not None and (box_changes or any(s.key in ("scene.periodic", "scene.shear")
+                                                         for s in scene.schedules)):
             shape = (2, 2) if self.sheared else (2,)
             self.edges = _series(box, "edges", shape, unit="m", chunk=self.block)
             self._edges = np.empty((self.block, *shape))
@@ -230,6 +234,7 @@ class TrajectoryWriter:
         self.awake = _series(obs, "awake", (b,), dtype=np.uint8, chunk=self.block)
         self.packing_series, self._packing = {}, {}  # what a packing measures: periodic box only
         if self.box is not None:
+            self._rattler_below = packing.rattler_below(model.material)
             self.packing_series = {"packing_fraction": _series(obs, "packing_fraction", (), chunk=self.block),
                                    "contacts": _series(obs, "contacts", (b,), dtype=np.int32, chunk=self.block),
                                    "rattler": _series(obs, "rattler", (b,), dtype=np.uint8, chunk=self.block),
@@ -326,7 +331,7 @@ class TrajectoryWriter:
         out = self._packing
         out["packing_fraction"][k] = packing.packing_fraction(area, sides)
         out["contacts"][k] = packing.contact_counts(touching, blobs)
-        out["rattler"][k] = packing.rattlers(touching, blobs)
+        out["rattler"][k] = packing.rattlers(touching, blobs, self._rattler_below)
         out["stress"][k] = sigma
         out["pressure"][k] = packing.pressure(sigma)
 

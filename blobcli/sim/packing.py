@@ -18,15 +18,19 @@ stress (N/m in 2D): negative under
 compression; the pressure is p = -tr(σ) / 2, positive under compression.
 
 Contacts: the blobs each blob touched in the step's last substep (a contact that pushed). Rattlers: blobs
-with fewer than RATTLER_BELOW contacts carry no load in a frictionless packing; removed one after another
-(their partners lose a contact each) until every blob left has at least that many (d + 1 = 3 in 2D).
+too loosely held to carry load, removed one after another (their partners lose a contact each) until every
+blob left has enough: d + 1 = 3 contacts in 2D without friction (normal forces alone balance only
+with three), d = 2 with friction (two contacts balance when the chord between them lies within both
+friction cones; the frictional jamming papers count rattlers so, e.g. Papanikolaou, O'Hern & Shattuck,
+PRL 110, 198002 (2013)).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-RATTLER_BELOW = 3  # contacts: a blob with fewer is a rattler (2D: d + 1)
+RATTLER_BELOW = 3  # contacts: a blob with fewer is a rattler, without friction (2D: d + 1) ...
+FRICTIONAL_RATTLER_BELOW = 2  # ... and with (d)
 
 
 def contact_counts(touching: np.ndarray, blobs: int) -> np.ndarray:
@@ -34,13 +38,19 @@ def contact_counts(touching: np.ndarray, blobs: int) -> np.ndarray:
     return np.bincount(touching.ravel(), minlength=blobs).astype(np.int32)
 
 
-def rattlers(touching: np.ndarray, blobs: int) -> np.ndarray:
-    """(B,) bool: the rattlers, removed repeatedly until every blob left has RATTLER_BELOW contacts."""
+def rattler_below(material: np.ndarray) -> int:
+    """The contacts a blob needs not to be a rattler, from the blobs' material (B, 3): frictional when any
+    blob has a static friction coefficient."""
+    return FRICTIONAL_RATTLER_BELOW if np.any(material[:, 0] > 0.0) else RATTLER_BELOW
+
+
+def rattlers(touching: np.ndarray, blobs: int, below: int = RATTLER_BELOW) -> np.ndarray:
+    """(B,) bool: the rattlers, removed repeatedly until every blob left has `below` contacts."""
     gone = np.zeros(blobs, bool)
     while True:
         live = touching[~(gone[touching[:, 0]] | gone[touching[:, 1]])]
         count = np.bincount(live.ravel(), minlength=blobs)
-        new = ~gone & (count < RATTLER_BELOW)
+        new = ~gone & (count < below)
         if not new.any():
             return gone
         gone |= new
@@ -52,6 +62,19 @@ def mean_contacts(touching: np.ndarray, rattler: np.ndarray) -> tuple[float, flo
     kept = touching[~(rattler[touching[:, 0]] | rattler[touching[:, 1]])]
     left = int((~rattler).sum())
     return 2.0 * len(touching) / blobs, (2.0 * len(kept) / left if left else 0.0)
+
+
+def rigid(touching: np.ndarray, rattler: np.ndarray, below: int) -> bool:
+    """Whether the blobs left after the rattlers have the contacts to be rigid in a periodic box: a
+    frictionless backbone of N' blobs needs N_c >= d (N' - 1) + 1 = 2 N' - 1 (d N' degrees of freedom less the
+    d translations, and one more for a positive pressure: Goodrich, Liu & Nagel, PRL 109, 095704 (2012)); a
+    frictional one, two constraints per contact on d + 1 = 3 degrees of freedom a blob, N_c >= (3 N' - 2) / 2.
+    (`below`: rattler_below, which says which.)"""
+    left = int((~rattler).sum())
+    if left == 0:
+        return False
+    kept = int((~(rattler[touching[:, 0]] | rattler[touching[:, 1]])).sum())
+    return kept >= (2 * left - 1 if below == RATTLER_BELOW else (3 * left - 2) / 2)
 
 
 def stress(virial: np.ndarray, dt: float, box) -> np.ndarray:

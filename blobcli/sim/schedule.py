@@ -109,14 +109,14 @@ class Schedules:
                 self.current_box = (np.array([np.interp(before, times, x), np.interp(before, times, y)]) if step > 0
                                     else np.array(self.params.box, dtype=np.float64))
             if np.any(box != self.current_box):
-                _carry(state, m.offsets, _box_map(self.current_box, box, self.current_shear or 0.0))
+                carry_blobs(state, m.offsets, box_map(self.current_box, box, self.current_shear or 0.0))
             self.current_box = box
             params = replace(params, box=(float(box[0]), float(box[1])))
         if self.shear is not None:
             times, values = self.shear
             gamma = float(np.interp(step * self.params.dt, times, values))
             if gamma != self.current_shear:
-                _carry(state, m.offsets, np.array([[1.0, gamma - self.current_shear], [0.0, 1.0]]))
+                carry_blobs(state, m.offsets, np.array([[1.0, gamma - self.current_shear], [0.0, 1.0]]))
                 state.awake[:] = 1
                 state.still[:] = 0.0
             self.current_shear = gamma
@@ -148,14 +148,14 @@ def target_areas(scene: Scene, steps) -> np.ndarray:
     return out
 
 
-def _carry(state, offsets, F) -> None:
+def carry_blobs(state, offsets, F) -> None:
     """Move each blob whole with an affine map of the box: its centre c (vertex average) to F c, F (2, 2)."""
     counts = np.diff(offsets)
     centre = np.add.reduceat(state.pos, offsets[:-1], axis=0) / counts[:, None]
     state.pos[...] += np.repeat(centre @ F.T - centre, counts, axis=0)
 
 
-def _box_map(old, new, gamma) -> np.ndarray:
+def box_map(old, new, gamma) -> np.ndarray:
     """F carrying the old box's vectors e_1 = (L_x, 0), e_2 = (γ L_y, L_y) to the new ones, r = new / old:
     c_x <- r_x c_x + γ (r_y - r_x) c_y, c_y <- r_y c_y (c <- c new / old when γ = 0)."""
     r = new / old

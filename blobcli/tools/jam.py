@@ -1,0 +1,240 @@
+"""`blobsim jam`: compress a scene's packing until it jams (sim/jamming.py), from one random start or
+from many on Dask, and report φ_J, z_J and the pressure as the soft-matter codes do.
+
+Seed k's start is the scene with `[scene] seed` = the scene's seed + k (its blobs with `count` placed
+anew); each runs on a worker (tools/executor.py) and writes DIR/seed-<seed>.h5: one frame per packing
+the protocol brought to rest, in order (the compression, the bisection, then the packings past onset),
+the box shrinking frame by frame; its last bisection frame is the jammed packing. The figures over all
+seeds are mean ± standard error (the standard deviation over √K).
+
+Past onset, z - z_J against φ - φ_J is fitted as a power law (least squares in log-log over the packings
+past onset whose z rose): the exponent β (1/2 for soft discs, O'Hern et al. 2003), for each seed and, in
+the mean, once over every seed's packings.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from dataclasses import replace
+from pathlib import Path
+
+from ..scene.schema import Scene, parse_scene, resolved_toml
+
+DEFAULT_PRESSURE = 3e-6  # p̃* = p* ᾱ: as near zero as the relaxation resolves (sim/jamming.py)
+DEFAULT_DRAG = 1.0  # 1/s: the relaxation's drag when the scene has none
+KEYS = ("phi_j", "z_j", "z_j_all", "pressure", "reduced_pressure", "rattlers", "beta")  # per seed, in the JSON
+
+
+def jam_problem(scene: Scene) -> str | None:
+    """Why this scene cannot be jammed, or None."""
+    if scene.settings.periodic is None:
+        return "jam compresses a periodic box: the scene needs [scene] periodic = [Lx, Ly]"
+    if len(scene.statics) > 0:
+        return "jam compresses blobs alone: the scene has [[static]] colliders"
+    if scene.schedules:
+        return "jam changes the box itself: the scene has [[schedule]] tables"
+    if scene.blob_count < 2:
+        return "jam needs more than one blob"
+    if any(b.compliance == 0.0 for b in scene.blobs):
+        return ("jam measures pressure in units of the blobs' perimeter compliance: a blob has compliance = 0 "
+                "(inextensible)")
+    return None
+
+
+def seed_scene(scene: Scene, seed: int) -> Scene:
+    """The scene with this placement seed (and a drag, if it has none), as its resolved TOML reads back."""
+    s = replace(scene.settings, seed=seed, drag=scene.settings.drag or DEFAULT_DRAG)
+    text = resolved_toml(replace(scene, settings=s))
+    return parse_scene(text, scene.source)
+
+
+def run_seed(scene_toml: str, source: str, target: float, h5: str) -> dict:
+    """Jam one start (on a worker): its figures, with status ok / interrupted / failed: reason."""
+    import numpy as np
+
+    from ..io import interrupts
+    from ..io.h5md import TrajectoryWriter
+    from ..io.threads import ThreadChoice
+    from ..sim import jamming
+    from ..sim.measure import blob_measures
+    from ..sim.model import build, build_params
+    if threading.current_thread() is not threading.main_thread():
+        interrupts.clear()  # a Dask worker: a stop asked of an earlier task is not for this one
+    scene = parse_scene(scene_toml, source)
+    model, state = build(scene)
+    params = build_params(scene)
+    row = {"seed": scene.settings.seed, "status": "failed", "file": h5, "path": []}
+    writer = TrajectoryWriter(h5, scene, model, params, box_changes=True)
+    steps = 0
+
+    def record(found, state, params):
+        nonlocal steps
+        steps += found.steps
+        area, kinetic = blob_measures(state, model)
+        writer.append(steps, state, area, kinetic, box=params.box)
+        row["path"].append(found._asdict())
+        if interrupts.pending() is not None:
+            raise KeyboardInterrupt
+
+    try:
+        with ThreadChoice(None, model.parallel) as choice:
+            result, _, _ = jamming.jam(state, model, params, target, on_packing=record, run=chosen_threads(choice))
+    except KeyboardInterrupt:
+        writer.close(complete=False, stopped=f"stopped by signal {interrupts.pending()}")
+        row["status"] = "interrupted"
+        return row
+    except ValueError as e:  # jammed as placed, or not below φ = 1
+        writer.close(complete=False, stopped=str(e))
+        row["status"] = f"failed: {e}"
+        return row
+    except OSError as e:  # the trajectory cannot be written (a full disk): the seed fails, the others go on
+        row["status"] = f"failed: writing {h5}: {e}; {writer.salvage(str(e))}"
+        return row
+    writer.close(complete=True)
+    j = result.jammed
+    past = [p._asdict() for p in result.past]
+    row.update(status="ok", phi_j=j.phi, z_j=j.z, z_j_all=j.z_all, pressure=j.pressure, reduced_pressure=j.reduced,
+               rattlers=j.rattlers, beta=contact_exponent(excess_contacts(j._asdict(), past)), past=past)
+    return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()}
+
+
+def excess_contacts(jammed: dict, past: list[dict]) -> list[tuple[float, float]]:
+    """(φ - φ_J, z - z_J) of the packings past onset whose z rose."""
+    return [(p["phi"] - jammed["phi"], p["z"] - jammed["z"]) for p in past
+            if p["z"] > jammed["z"] and p["phi"] > jammed["phi"]]
+
+
+def chosen_threads(choice):
+    """pipeline.advance, each call on the threads `choice` (io/threads.py) plans: one thread while the
+    machine is busy (two jams side by side on two threads each ran 8× slower than alone)."""
+    import time
+
+    from ..sim.pipeline import advance
+
+    def run(state, model, params, steps, step_settings=None):
+        while steps > 0:
+            threads, count = choice.plan(steps)
+            t0, cpu0 = time.perf_counter(), time.process_time()
+            ran = advance(state, model, params, count, step_settings=step_settings)
+            choice.observe(threads, ran, time.perf_counter() - t0, time.process_time() - cpu0)
+            steps -= count
+    return run
+
+
+def contact_exponent(points: list[tuple[float, float]]) -> float:
+    """β of z - z_J ∝ (φ - φ_J)^β, least squares in log-log (NaN with fewer than 3 points)."""
+    import numpy as np
+    if len(points) < 3:
+        return math.nan
+    x, y = np.log(np.array(points)).T
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def summary(rows: list[dict]) -> dict:
+    """The JSON: every seed's figures, and their mean with the standard errors of φ_J and z_J."""
+    import numpy as np
+    ok = [r for r in rows if r["status"] == "ok"]
+    seeds = [{"seed": r["seed"], **{k: r[k] for k in KEYS}} for r in ok]
+    mean = {}
+    if ok:
+        for k in KEYS:
+            values = np.array([r[k] for r in ok], dtype=float)
+            values = values[np.isfinite(values)]
+            mean[k] = float(values.mean()) if len(values) else math.nan
+        for k in ("phi_j", "z_j"):
+            values = np.array([r[k] for r in ok])
+            mean[f"{k}_sem"] = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan
+        # one fit over every seed's packings past onset (a seed's own five scatter with its z_J)
+        mean["beta"] = contact_exponent([pt for r in ok for pt in excess_contacts(
+            {"phi": r["phi_j"], "z": r["z_j"]}, r.get("past", []))])
+    return {"seeds": seeds, "mean": mean}
+
+
+def report(figures: dict) -> str:
+    """The printed lines of the summary."""
+    m = figures["mean"]
+    if not m:
+        return "blobsim: no seed jammed"
+    k = len(figures["seeds"])
+    pm = "" if k < 2 else " ± {:.4f}"
+    return (f"phi_J = {m['phi_j']:.4f}{pm.format(m['phi_j_sem'])}, "
+            f"z_J = {m['z_j']:.3f}{pm.format(m['z_j_sem'])} (rattlers removed; {m['z_j_all']:.3f} with them), "
+            f"pressure {m['pressure']:.3g} N/m (p alpha = {m['reduced_pressure']:.2e}), "
+            f"{m['rattlers']:.1f} rattlers, z - z_J ~ (phi - phi_J)^{m['beta']:.2f}; "
+            f"{k} seed{'s' if k > 1 else ''}" + (" (mean ± standard error)" if k > 1 else ""))
+
+
+def run_jam(scene: Scene, out: Path, seeds: int, target: float, scheduler=None, workers=None, progress=False,
+            announce=print, compiling=None) -> tuple[list[dict], bool]:
+    """Jam `seeds` starts of the scene through the executor; (rows in seed order, interrupted)."""
+    from ..io.interrupts import caused_by_signal, pending, request_stop
+    from ..io.run import compile_scenes
+    from .executor import run_tasks
+    out.mkdir(parents=True, exist_ok=True)
+    scenes = [seed_scene(scene, scene.settings.seed + k) for k in range(seeds)]
+    tasks = [(s.text, s.source, target, str(out / f"seed-{s.settings.seed}.h5")) for s in scenes]
+    announce(f"blobsim: jam {scene.name}: {seeds} seed{'s' if seeds > 1 else ''} "
+             f"({scenes[0].settings.seed}..{scenes[-1].settings.seed}), p alpha = {target:g}, in {out}")
+    rows = {}
+    try:
+        if scheduler is None:
+            compile_scenes(scenes[:1], compiling)
+        for i, row in run_tasks(run_seed, tasks, scheduler, workers, progress=progress, label="seeds",
+                                stop=request_stop):
+            rows[i] = row
+            if row["status"] == "interrupted":  # (in this process: the seeds after it are not started)
+                announce(f"  seed {row['seed']}: interrupted; its frames are kept in {row['file']}")
+                break
+            if row["status"] == "ok":
+                announce(f"  seed {row['seed']}: phi_J = {row['phi_j']:.4f}, z_J = {row['z_j']:.3f} "
+                         f"({row['rattlers']} rattlers), p alpha = {row['reduced_pressure']:.2e}")
+            else:
+                announce(f"  seed {row['seed']}: {row['status']}")
+    except (KeyboardInterrupt, Exception) as e:
+        if not caused_by_signal(e):
+            raise
+        return [rows[k] for k in sorted(rows)], True
+    return [rows[k] for k in sorted(rows)], pending() is not None
+
+
+def write_json(figures: dict, path: Path) -> None:
+    """The figures as JSON; a figure that could not be had (a standard error of one seed, an exponent
+    without enough packings past onset) is null."""
+    from ..io.outputs import write_text
+
+    def plain(x):
+        if isinstance(x, dict):
+            return {k: plain(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [plain(v) for v in x]
+        return None if isinstance(x, float) and not math.isfinite(x) else x
+    write_text(path, json.dumps(plain(figures), indent=2) + "\n")
+
+
+def chart(rows: list[dict], png: Path, target: float) -> None:
+    """Pressure and z against φ over each seed's compression (the packings brought to rest), the jammed
+    ones marked."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = [r for r in rows if r["status"] == "ok"]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
+    for r in ok:
+        tried = sorted(r["path"] + r["past"], key=lambda p: p["phi"])
+        phi = [p["phi"] for p in tried]
+        line, = top.plot(phi, [max(p["reduced"], 1e-12) for p in tried], ".-", lw=0.8, ms=3)
+        bottom.plot(phi, [p["z"] for p in tried], ".-", lw=0.8, ms=3, color=line.get_color())
+        top.plot(r["phi_j"], r["reduced_pressure"], "o", mfc="none", color=line.get_color())
+        bottom.plot(r["phi_j"], r["z_j"], "o", mfc="none", color=line.get_color())
+    top.axhline(target, color="0.6", lw=0.6, ls=":")
+    bottom.axhline(4.0, color="0.6", lw=0.6, ls="--")
+    top.set_yscale("log")
+    top.set_ylabel("pressure p ᾱ")
+    bottom.set_ylabel("contacts per blob z (rattlers removed)")
+    bottom.set_xlabel("packing fraction φ")
+    top.set_title(f"compression to jamming, {len(ok)} seed{'s' if len(ok) != 1 else ''} (circles: jammed)")
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
