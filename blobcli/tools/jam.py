@@ -75,11 +75,9 @@ def run_seed(scene_toml: str, source: str, target: float, h5: str) -> dict:
         area, kinetic = blob_measures(state, model)
         writer.append(steps, state, area, kinetic, box=params.box)
         row["path"].append(found._asdict())
-        if interrupts.pending() is not None:
-            raise KeyboardInterrupt
 
-    try:
-        with ThreadChoice(None, model.parallel) as choice:
+    try:  # a signal is only recorded, and stops the seed between two compiled calls (chosen_threads)
+        with interrupts.deferred(), ThreadChoice(None, model.parallel) as choice:
             result, _, _ = jamming.jam(state, model, params, target, on_packing=record, run=chosen_threads(choice))
     except KeyboardInterrupt:
         writer.close(complete=False, stopped=f"stopped by signal {interrupts.pending()}")
@@ -108,13 +106,17 @@ def excess_contacts(jammed: dict, past: list[dict]) -> list[tuple[float, float]]
 
 def chosen_threads(choice):
     """pipeline.advance, each call on the threads `choice` (io/threads.py) plans: one thread while the
-    machine is busy (two jams side by side on two threads each ran 8× slower than alone)."""
+    machine is busy (two jams side by side on two threads each ran 8× slower than alone). A pending
+    signal (io/interrupts.py) stops it between calls, as KeyboardInterrupt."""
     import time
 
+    from ..io import interrupts
     from ..sim.pipeline import advance
 
     def run(state, model, params, steps, step_settings=None):
         while steps > 0:
+            if interrupts.pending() is not None:
+                raise KeyboardInterrupt
             threads, count = choice.plan(steps)
             t0, cpu0 = time.perf_counter(), time.process_time()
             ran = advance(state, model, params, count, step_settings=step_settings)
@@ -156,7 +158,7 @@ def report(figures: dict) -> str:
     """The printed lines of the summary."""
     m = figures["mean"]
     if not m:
-        return "blobsim: no seed jammed"
+        return "no seed jammed"
     k = len(figures["seeds"])
     pm = "" if k < 2 else " ± {:.4f}"
     return (f"phi_J = {m['phi_j']:.4f}{pm.format(m['phi_j_sem'])}, "
