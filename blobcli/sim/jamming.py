@@ -1,5 +1,5 @@
 """Jamming by compression: the protocol of the soft-matter codes (O'Hern, Silbert, Liu & Nagel, PRE 68,
-011306 (2003), §II; the deformable polygons of Boromand et al., Soft Matter 15, 5854 (2019), and their code
+011306 (2003); the deformable polygons of Boromand et al., Soft Matter 15, 5854 (2019), and their code
 jacktreado/dpm), in a periodic box.
 
 A packing is compressed in small steps of packing fraction φ and brought to rest after each; it is
@@ -16,7 +16,7 @@ loosest jammed one, each try starting again from the unjammed packing, until a j
 within PRESSURE_TOLERANCE of p* or the bracket is narrower than SMALLEST_STEP. That packing is the
 jammed one: φ_J, its contact number z_J (rattlers removed, sim/packing.py) and p. Past it, the packing
 is compressed by PAST_ONSET more (each from the jammed packing) to measure how contacts grow,
-z - z_J ∝ (φ - φ_J)^β (β = 1/2 for soft discs: O'Hern et al., Fig. 5).
+z - z_J ∝ (φ - φ_J)^β (β = 1/2 for soft discs: O'Hern et al. 2003).
 
 Pressure is dimensionless in the blobs' own stiffness, p̃ = p ᾱ, ᾱ their mean perimeter compliance
 (m/N): a blob of n edges under a pressure p holds a perimeter tension T = p R (Laplace), which
