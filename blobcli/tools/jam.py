@@ -141,14 +141,13 @@ def summary(rows: list[dict]) -> dict:
     seeds = [{"seed": r["seed"], **{k: r[k] for k in KEYS}} for r in ok]
     mean = {}
     if ok:
-        for k in KEYS:
+        for k in KEYS[:-1]:  # (β: below)
             values = np.array([r[k] for r in ok], dtype=float)
-            values = values[np.isfinite(values)]
-            mean[k] = float(values.mean()) if len(values) else math.nan
+            mean[k] = float(values.mean())
         for k in ("phi_j", "z_j"):
             values = np.array([r[k] for r in ok])
             mean[f"{k}_sem"] = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan
-        # one fit over every seed's packings past onset (a seed's own five scatter with its z_J)
+        # one fit over every seed's packings past onset (a seed's own few scatter with its z_J)
         mean["beta"] = contact_exponent([pt for r in ok for pt in excess_contacts(
             {"phi": r["phi_j"], "z": r["z_j"]}, r.get("past", []))])
     return {"seeds": seeds, "mean": mean}
