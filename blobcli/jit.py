@@ -147,18 +147,16 @@ def loaded(dispatcher) -> bool:
 
 
 @contextmanager
-def first_call(dispatcher, parallel: bool):
+def first_call(dispatcher):
     """Around a build's first call in this process: one process at a time on this machine compiles a
     build or loads it from numba's disk cache. Two processes compiling the same parallel build at once
     can leave its cache files from different compilations, whose calls then go through a null function
-    pointer: a segfault in every later run that loads them (numba issue #10128, open, for the gufuncs that
-    parallel builds are made of; seen here as a jam started beside the tests, in CI, and in two dev caches).
-    An flock on COMPILE_LOCK serializes the first calls of `parallel` builds (the second waits, then loads
-    what the first saved); serial builds, plain functions, compile side by side as before. Where flock is
-    missing (Windows) or the lock file cannot be opened, nothing is locked."""
-    if id(dispatcher) in _LOADED or not parallel:
+    pointer: a segfault in every later run that loads them (numba issue #10128, open; seen here as a jam
+    started beside the tests, in CI, and in two dev caches). An flock on COMPILE_LOCK serializes them (the
+    second waits, then loads what the first saved); where flock is missing (Windows) or the lock file
+    cannot be opened, nothing is locked."""
+    if id(dispatcher) in _LOADED:
         yield
-        _LOADED.add(id(dispatcher))
         return
     try:
         import fcntl

@@ -307,7 +307,7 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
     here (tens of seconds): `announce(description)`, a context manager, is entered around it."""
     kernel = step_build(model, step_settings)
     args = (0, state, model.arrays, step_settings, NO_CLOCK)
-    with first_call(kernel, model.parallel):
+    with first_call(kernel):
         if announce is not None and in_disk_cache(kernel, args) is False:
             with announce(describe(model, step_settings)):
                 kernel(*args)
@@ -330,7 +330,7 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
     kernel = step_build(model, step_settings)
     arrays = model.arrays if arrays is None else arrays
     if not loaded(kernel):  # compiled or loaded by a call of no steps (the state is not touched)
-        with first_call(kernel, model.parallel):
+        with first_call(kernel):
             kernel(0, state, arrays, step_settings, NO_CLOCK)
     done, why, detail = kernel(steps, state, arrays, step_settings, timer)
     if clock is not None:
