@@ -9,9 +9,7 @@ calls, the perimeter sweep ran 7× slower.
 
 import functools
 import hashlib
-import tempfile
 import types
-from contextlib import contextmanager
 from pathlib import Path
 
 import numba
@@ -135,40 +133,3 @@ def in_disk_cache(dispatcher, args) -> bool | None:
         return key in cache._cache_file._load_index()
     except Exception:  # a private API: any change in numba means "cannot tell", never a failed run
         return None
-
-
-_LOADED: set = set()  # id of each build whose first call (compile, or load from the disk cache) was made here
-COMPILE_LOCK = Path(tempfile.gettempdir()) / "blobsim-numba-compile.lock"
-
-
-def loaded(dispatcher) -> bool:
-    """Whether this build's first call has been made in this process (see first_call)."""
-    return id(dispatcher) in _LOADED
-
-
-@contextmanager
-def first_call(dispatcher):
-    """Around a build's first call in this process: one process at a time on this machine compiles a
-    build or loads it from numba's disk cache. Two processes compiling the same parallel build at once
-    can leave its cache files from different compilations, whose calls then go through a null function
-    pointer: a segfault in every later run that loads them (numba issue #10128, open; seen here as a jam
-    started beside the tests, in CI, and in two dev caches). An flock on COMPILE_LOCK serializes them (the
-    second waits, then loads what the first saved); where flock is missing (Windows) or the lock file
-    cannot be opened, nothing is locked."""
-    if id(dispatcher) in _LOADED:
-        yield
-        return
-    try:
-        import fcntl
-        lock = open(COMPILE_LOCK, "a")  # (another user's, unwritable: then unlocked, as before)
-    except (ImportError, OSError):
-        yield
-        _LOADED.add(id(dispatcher))
-        return
-    with lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            yield
-            _LOADED.add(id(dispatcher))
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)

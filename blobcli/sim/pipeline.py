@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from ..colliders import SOLVERS
-from ..jit import build, first_call, in_disk_cache, inline_kernel, loaded, stage_kernel
+from ..jit import build, in_disk_cache, inline_kernel, stage_kernel
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
 from .collide import (
     PAIRS_PER_BLOB,
@@ -307,12 +307,11 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
     here (tens of seconds): `announce(description)`, a context manager, is entered around it."""
     kernel = step_build(model, step_settings)
     args = (0, state, model.arrays, step_settings, NO_CLOCK)
-    with first_call(kernel):
-        if announce is not None and in_disk_cache(kernel, args) is False:
-            with announce(describe(model, step_settings)):
-                kernel(*args)
-        else:
+    if announce is not None and in_disk_cache(kernel, args) is False:
+        with announce(describe(model, step_settings)):
             kernel(*args)
+    else:
+        kernel(*args)
 
 
 def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
@@ -327,12 +326,8 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
     rebuilding them on every call; `arrays` (a schedule's: sim/schedule.py) replace model.arrays."""
     timer = np.zeros(len(STAGES)) if clock is not None else NO_CLOCK
     step_settings = step_settings or settings(model, params)
-    kernel = step_build(model, step_settings)
-    arrays = model.arrays if arrays is None else arrays
-    if not loaded(kernel):  # compiled or loaded by a call of no steps (the state is not touched)
-        with first_call(kernel):
-            kernel(0, state, arrays, step_settings, NO_CLOCK)
-    done, why, detail = kernel(steps, state, arrays, step_settings, timer)
+    done, why, detail = step_build(model, step_settings)(steps, state, model.arrays if arrays is None else arrays,
+                                                         step_settings, timer)
     if clock is not None:
         for name, seconds in zip(STAGES, timer):
             clock[name] = clock.get(name, 0.0) + float(seconds)
