@@ -139,11 +139,11 @@ def copy_state(state: State) -> State:
 
 def jam(state: State, model: Model, params: Params, target: float,
         on_packing: Callable[[Packing, State, Params], None] | None = None,
-        run=advance) -> tuple[Jammed, State, Params]:
-    """Compress the scene's packing to jamming at reduced pressure `target` (module docstring). Returns
-    what was found, and the jammed packing's state and params (its box). `on_packing(packing, state,
-    params)` is called with every packing measured, in order (to record them); `run` advances the
-    state (pipeline.advance's signature: `blobsim jam` passes one that picks the threads, io/threads.py)."""
+        run=advance) -> Jammed:
+    """Compress the scene's packing to jamming at reduced pressure `target` (module docstring): what was
+    found. `on_packing(packing, state, params)` is called with every packing measured, in order (to record
+    them); `run` advances the state (pipeline.advance's signature: `blobsim jam` passes one that picks the
+    threads, io/threads.py)."""
     path = []
 
     def tried(state, params):
@@ -184,4 +184,4 @@ def jam(state: State, model: Model, params: Params, target: float,
         s = copy_state(jammed_state)
         p = compress(s, model, jammed_params, found.phi + dphi)
         past.append(tried(s, p))
-    return Jammed(jammed=found, path=path, past=past), jammed_state, jammed_params
+    return Jammed(jammed=found, path=path, past=past)

@@ -78,7 +78,7 @@ def run_seed(scene_toml: str, source: str, target: float, h5: str) -> dict:
 
     try:  # a signal is only recorded, and stops the seed between two compiled calls (chosen_threads)
         with interrupts.deferred(), ThreadChoice(None, model.parallel) as choice:
-            result, _, _ = jamming.jam(state, model, params, target, on_packing=record, run=chosen_threads(choice))
+            result = jamming.jam(state, model, params, target, on_packing=record, run=chosen_threads(choice))
     except KeyboardInterrupt:
         writer.close(complete=False, stopped=f"stopped by signal {interrupts.pending()}")
         row["status"] = "interrupted"
