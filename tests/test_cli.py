@@ -213,10 +213,14 @@ def test_two_runs_are_bit_identical(tmp_path):
     assert a.position.tobytes() == b.position.tobytes()
 
 
-PARALLEL_SCENES = ("hourglass", "pile")  # 32 blobs or more: the parallel build, compiled in the slow tier
+def _runs_parallel(path) -> bool:
+    """Whether a scene runs the parallel build (PARALLEL_BLOBS blobs or more): compiled in the slow tier."""
+    from blobcli import load_scene
+    from blobcli.sim.model import PARALLEL_BLOBS
+    return load_scene(path).blob_count >= PARALLEL_BLOBS
 
 
-@pytest.mark.parametrize("scene", [pytest.param(s, marks=pytest.mark.slow) if s.stem in PARALLEL_SCENES else s
+@pytest.mark.parametrize("scene", [pytest.param(s, marks=pytest.mark.slow) if _runs_parallel(s) else s
                                    for s in SCENES], ids=[s.stem for s in SCENES])
 def test_every_shipped_scene_runs(tmp_path, scene):
     """Smoke: every scene validates, builds and steps (its physics is tested elsewhere)."""
