@@ -15,6 +15,7 @@ import pytest
 
 from blobcli import build, build_params, parse_scene, step
 from blobcli.geometry import first_crossing, signed_area
+from blobcli.sim import pipeline
 from blobcli.tools.dynamics import deepest_overlap  # noqa: F401 (for the tests: the figure the docs quote)
 
 # Tolerances, with what they bound.
@@ -58,6 +59,85 @@ GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
+    config.addinivalue_line("markers", "own_builds: run each scene's own build of the step (not `one_build_per_collider_mix`)")
+
+
+EVERY_KIND = dict(planes=True, segments=True, circles=True, polygons=True)
+
+
+def with_every_collider_kind(config: pipeline.Configuration) -> pipeline.Configuration:
+    """The build of the step for a scene with colliders, widened to every collider kind: a kind the scene
+    lacks runs its kernel over no rows, so the bits are the scene's own build's (tested:
+    test_builds.py)."""
+    return config._replace(**EVERY_KIND) if config.statics else config
+
+
+# Far from everything: with a plane, every collider kind, so that a scene run as a real process (which runs
+# its own build) runs the build that the tests in this process share (`one_build_per_collider_mix`).
+EVERY_KIND_FAR_AWAY = """
+[[static]]
+kind = "segment"
+a = [100.0, 0.0]
+b = [101.0, 0.0]
+[[static]]
+kind = "circle"
+center = [100.0, 5.0]
+radius = 0.5
+[[static]]
+kind = "box"
+center = [100.0, 10.0]
+size = [1.0, 1.0]
+"""
+
+
+@pytest.fixture(autouse=True)
+def one_build_per_collider_mix(request, monkeypatch):
+    """Tests run in this process share one build of the step for every mix of collider kinds (a scene
+    with a floor and one with a floor and a polygon run the same build), so the suite compiles about half
+    as many builds on a cold numba cache (each build links and optimizes the whole step again: ~10 s).
+    Subprocesses (`blobsim` as a real process) and tests marked own_builds run each scene's own build."""
+    if request.node.get_closest_marker("own_builds") is None:
+        configuration = pipeline.configuration
+        monkeypatch.setattr(pipeline, "configuration", lambda model, params:
+                            with_every_collider_kind(configuration(model, params)))
+
+
+# The builds most tests share, compiled before the tests fan out to one process per core (the way a sweep
+# compiles before it fans out), in two processes of about equal work: the blob-contact build (blobs on a floor,
+# every collider kind), and one blob with every collider kind on a floor and on a path, sleeping or not, and
+# with the gas method.
+_FLOOR_EVERY_KIND = """
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+""" + EVERY_KIND_FAR_AWAY
+_MOVING = """
+[[static]]
+kind = "box"
+center = [0.0, -3.0]
+size = [4.0, 1.0]
+path = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 1.0, 0.0]]
+"""
+_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
+SHARED_BUILDS = (
+    [_BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n" + _FLOOR_EVERY_KIND],
+    [_BLOB + _FLOOR_EVERY_KIND, _BLOB + _FLOOR_EVERY_KIND + _MOVING, "[scene]\nsleep = false\n" + _BLOB + _FLOOR_EVERY_KIND,
+     "[scene]\nsleep = false\n" + _BLOB + _FLOOR_EVERY_KIND + _MOVING, _BLOB,
+     '[scene]\nmethod = "gas"\n' + _BLOB + _FLOOR_EVERY_KIND])
+
+
+def pytest_sessionstart(session):
+    """Before xdist starts its worker processes (its own hook runs last): compile the SHARED_BUILDS side by
+    side, one process each, so that the workers load them instead of compiling the same build at once (on a
+    cold numba cache the blob-contact build alone takes a minute; with them warm this costs a Python start)."""
+    if hasattr(session.config, "workerinput") or (session.config.getoption("numprocesses", None) or 0) < 2:
+        return
+    code = "import sys; from blobcli import parse_scene; from blobcli.io.run import compile_scenes; " \
+           "compile_scenes([parse_scene(text, 'shared build') for text in sys.argv[1:]])"
+    procs = [subprocess.Popen([sys.executable, "-c", code, *texts]) for texts in SHARED_BUILDS]
+    for proc in procs:
+        proc.wait()
 
 
 def scene(text: str):

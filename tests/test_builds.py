@@ -4,6 +4,7 @@ while it compiles (issue "The first run and the tests in seconds")."""
 import subprocess
 import sys
 
+import pytest
 from conftest import FLOOR, cli, scene
 
 from blobcli import build, build_params
@@ -17,6 +18,8 @@ duration = 0.1
 center = [0.0, 1.0]
 radius = 0.5
 """ + FLOOR
+
+pytestmark = pytest.mark.own_builds  # these tests are about each scene's own build
 
 
 def test_a_one_blob_scene_compiles_no_blob_contact_stage_and_no_other_area_method():
@@ -73,3 +76,30 @@ def test_a_cold_build_prints_what_it_compiles_unless_quiet(tmp_path, monkeypatch
         in err
     code, out, err = cli("run", toml, "-o", tmp_path / "b.h5", "-q")
     assert code == 0 and "compiling" not in err, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["drum", "pegboard", "press", "piston"])
+def test_the_build_for_every_collider_kind_gives_a_scenes_own_bits(name):
+    """The suite runs one build of the step for every mix of collider kinds (conftest.with_every_collider_kind):
+    on shipped scenes with circles, segments, moving and loaded walls, it gives the bits of their own build
+    (gish's and crusher's goldens, compared in the fast tier, cover the other kinds)."""
+    from pathlib import Path
+
+    from conftest import with_every_collider_kind
+
+    from blobcli import load_scene
+    from blobcli.sim.model import PARALLEL_BLOBS
+    sc = load_scene(Path(__file__).resolve().parent.parent / "scenes" / f"{name}.toml")
+    assert sc.blob_count < PARALLEL_BLOBS  # serial: the parallel builds give the same bits (test_collide)
+    params = build_params(sc)
+    model, _ = build(sc)
+    own = pipeline.settings(model, params)
+    every = own._replace(config=with_every_collider_kind(own.config))
+    assert every.config != own.config
+    runs = []
+    for step_settings in (own, every):
+        model, state = build(sc)
+        pipeline.advance(state, model, params, 120, step_settings=step_settings)
+        runs.append((state.pos.tobytes(), state.vel.tobytes(), state.static_impulse.tobytes()))
+    assert runs[0] == runs[1]
