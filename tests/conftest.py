@@ -3,6 +3,7 @@ with what it bounds; tests take test *inputs* (a compare --atol to exercise, a d
 
 import contextlib
 import io
+import os
 import signal
 import subprocess
 import sys
@@ -59,85 +60,19 @@ GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
-    config.addinivalue_line("markers", "own_builds: run each scene's own build of the step (not `one_build_per_collider_mix`)")
+    config.addinivalue_line("markers", "own_builds: run each scene's own build of the step, not the one for every collider kind")
 
 
-EVERY_KIND = dict(planes=True, segments=True, circles=True, polygons=True)
-
-
-def with_every_collider_kind(config: pipeline.Configuration) -> pipeline.Configuration:
-    """The build of the step for a scene with colliders, widened to every collider kind: a kind the scene
-    lacks runs its kernel over no rows, so the bits are the scene's own build's (tested:
-    test_builds.py)."""
-    return config._replace(**EVERY_KIND) if config.statics else config
-
-
-# Far from everything: with a plane, every collider kind, so that a scene run as a real process (which runs
-# its own build) runs the build that the tests in this process share (`one_build_per_collider_mix`).
-EVERY_KIND_FAR_AWAY = """
-[[static]]
-kind = "segment"
-a = [100.0, 0.0]
-b = [101.0, 0.0]
-[[static]]
-kind = "circle"
-center = [100.0, 5.0]
-radius = 0.5
-[[static]]
-kind = "box"
-center = [100.0, 10.0]
-size = [1.0, 1.0]
-"""
+# The tests, and the runs they start as real processes, share one build of the step for every mix of collider
+# kinds (pipeline.every_collider_kind: the same bits, tested in test_builds.py), so that the suite compiles
+# about half as many builds on a cold numba cache. Tests marked own_builds run each scene's own build.
+os.environ[pipeline.EVERY_COLLIDER_KIND] = "1"
 
 
 @pytest.fixture(autouse=True)
-def one_build_per_collider_mix(request, monkeypatch):
-    """Tests run in this process share one build of the step for every mix of collider kinds (a scene
-    with a floor and one with a floor and a polygon run the same build), so the suite compiles about half
-    as many builds on a cold numba cache (each build links and optimizes the whole step again: ~10 s).
-    Subprocesses (`blobsim` as a real process) and tests marked own_builds run each scene's own build."""
-    if request.node.get_closest_marker("own_builds") is None:
-        configuration = pipeline.configuration
-        monkeypatch.setattr(pipeline, "configuration", lambda model, params:
-                            with_every_collider_kind(configuration(model, params)))
-
-
-# The builds most tests share, compiled before the tests fan out to one process per core (the way a sweep
-# compiles before it fans out), in two processes of about equal work: the blob-contact build (blobs on a floor,
-# every collider kind), and one blob with every collider kind on a floor and on a path, sleeping or not, and
-# with the gas method.
-_FLOOR_EVERY_KIND = """
-[[static]]
-kind = "plane"
-point = [0.0, 0.0]
-normal = [0.0, 1.0]
-""" + EVERY_KIND_FAR_AWAY
-_MOVING = """
-[[static]]
-kind = "box"
-center = [0.0, -3.0]
-size = [4.0, 1.0]
-path = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 1.0, 0.0]]
-"""
-_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
-SHARED_BUILDS = (
-    [_BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n" + _FLOOR_EVERY_KIND],
-    [_BLOB + _FLOOR_EVERY_KIND, _BLOB + _FLOOR_EVERY_KIND + _MOVING, "[scene]\nsleep = false\n" + _BLOB + _FLOOR_EVERY_KIND,
-     "[scene]\nsleep = false\n" + _BLOB + _FLOOR_EVERY_KIND + _MOVING, _BLOB,
-     '[scene]\nmethod = "gas"\n' + _BLOB + _FLOOR_EVERY_KIND])
-
-
-def pytest_sessionstart(session):
-    """Before xdist starts its worker processes (its own hook runs last): compile the SHARED_BUILDS side by
-    side, one process each, so that the workers load them instead of compiling the same build at once (on a
-    cold numba cache the blob-contact build alone takes a minute; with them warm this costs a Python start)."""
-    if hasattr(session.config, "workerinput") or (session.config.getoption("numprocesses", None) or 0) < 2:
-        return
-    code = "import sys; from blobcli import parse_scene; from blobcli.io.run import compile_scenes; " \
-           "compile_scenes([parse_scene(text, 'shared build') for text in sys.argv[1:]])"
-    procs = [subprocess.Popen([sys.executable, "-c", code, *texts]) for texts in SHARED_BUILDS]
-    for proc in procs:
-        proc.wait()
+def each_scene_its_own_build_where_marked(request, monkeypatch):
+    if request.node.get_closest_marker("own_builds") is not None:
+        monkeypatch.delenv(pipeline.EVERY_COLLIDER_KIND)
 
 
 def scene(text: str):
@@ -177,6 +112,46 @@ kind = "plane"
 point = [0.0, 0.0]
 normal = [0.0, 1.0]
 """
+
+
+# The builds most tests share, compiled before the tests fan out to one process per core (as a sweep compiles
+# before it fans out), so that the workers load them instead of compiling one build at the same time; each
+# tier's in two processes of about equal work. (scene texts or shipped scenes, whether with their own builds)
+_MOVING = """
+[[static]]
+kind = "box"
+center = [0.0, -3.0]
+size = [4.0, 1.0]
+path = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 1.0, 0.0]]
+"""
+_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
+_SCENES = Path(__file__).resolve().parent.parent / "scenes"
+SHARED_BUILDS = {
+    # the blob-contact build (two blobs on a floor); one blob on a floor, on a path, sleeping or not, gas
+    "not slow": (([_BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n" + FLOOR], False),
+                 ([_BLOB + FLOOR, _BLOB + FLOOR + _MOVING, "[scene]\nsleep = false\n" + _BLOB + FLOOR,
+                   "[scene]\nsleep = false\n" + _BLOB + FLOOR + _MOVING, _BLOB,
+                   '[scene]\nmethod = "gas"\n' + _BLOB + FLOOR], False)),
+    # the parallel builds, in one process: two processes compiling one parallel build at once can leave cache
+    # files that crash every later load (numba issue #10128); and the own builds test_builds.py compares
+    "slow": (([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False),
+             ([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True)),
+}
+
+
+def pytest_sessionstart(session):
+    """Before xdist starts its worker processes (its own hook runs last): compile this tier's SHARED_BUILDS
+    (with them warm this costs a Python start)."""
+    config = session.config
+    if hasattr(config, "workerinput") or (config.getoption("numprocesses", None) or 0) < 2:
+        return
+    code = "import sys; from blobcli import load_scene, parse_scene; from blobcli.io.run import compile_scenes; " \
+           "compile_scenes([load_scene(a) if a.endswith('.toml') else parse_scene(a, 'shared') for a in sys.argv[1:]])"
+    own_env = {k: v for k, v in os.environ.items() if k != pipeline.EVERY_COLLIDER_KIND}
+    procs = [subprocess.Popen([sys.executable, "-c", code, *scenes], env=own_env if own else None)
+             for scenes, own in SHARED_BUILDS.get(config.getoption("markexpr"), ())]
+    for proc in procs:
+        proc.wait()
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import EVERY_KIND_FAR_AWAY, blobsim, start_run
+from conftest import blobsim, start_run
 
 from blobcli import read_trajectory
 
@@ -139,7 +139,7 @@ spacing = [0.8, 0.8]
 kind = "plane"
 point = [0.0, 0.0]
 normal = [0.0, 1.0]
-""" + EVERY_KIND_FAR_AWAY  # the in-process tests' build
+"""
 
 
 def start_long_run(tmp_path):

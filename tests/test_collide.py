@@ -169,13 +169,16 @@ radius = 0.5
     np.testing.assert_allclose(area, model.target_area, rtol=AREA_ROUNDOFF)
 
 
+def random_blobs(seed, blobs, spread):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(0, spread, (blobs, 2)), rng.uniform(0.1, 1.0, blobs)
+
+
 @settings(max_examples=50, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), blobs=st.integers(2, 300), spread=st.floats(1.0, 200.0))
-def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs, spread):
-    rng = np.random.default_rng(seed)
-    center = rng.uniform(0, spread, (blobs, 2))
-    radius = rng.uniform(0.1, 1.0, blobs)
-    pairs, _ = parallel(_find_pairs)(center, radius, 10**9)
+def test_broad_phase_finds_exactly_the_close_pairs(seed, blobs, spread):
+    center, radius = random_blobs(seed, blobs, spread)
+    pairs, _ = _find_pairs(center, radius, 10**9)
     from blobcli.sim.collide import BROAD_MARGIN
     expected = set()
     for a in range(blobs):
@@ -185,7 +188,15 @@ def test_broad_phase_finds_exactly_the_close_pairs_in_a_fixed_order(seed, blobs,
                 expected.add((a, b))
     assert set(map(tuple, pairs.tolist())) == expected
     assert len(pairs) == len(expected)
-    np.testing.assert_array_equal(pairs, _find_pairs(center, radius, 10**9)[0])  # serial build: same order
+
+
+@pytest.mark.slow  # compiles a parallel build
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), blobs=st.integers(2, 300), spread=st.floats(1.0, 200.0))
+def test_the_parallel_broad_phase_finds_the_pairs_in_the_serial_builds_order(seed, blobs, spread):
+    center, radius = random_blobs(seed, blobs, spread)
+    np.testing.assert_array_equal(parallel(_find_pairs)(center, radius, 10**9)[0],
+                                  _find_pairs(center, radius, 10**9)[0])
 
 
 def test_collision_stages_do_not_run_with_one_blob():

@@ -3,6 +3,10 @@ looser, and the command keeps its contract (bad input, JSON, one trajectory per 
 
 import json
 import math
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -130,3 +134,25 @@ def test_friction_jams_the_packing_looser_with_fewer_contacts(tmp_path):
     a, b = frictionless["seeds"][0], rough["seeds"][0]
     assert b["phi_j"] < a["phi_j"] - 0.02 and b["z_j"] < a["z_j"] - 0.3
 
+
+@pytest.mark.slow
+def test_a_stopped_jam_keeps_every_packing_it_brought_to_rest(tmp_path):
+    """Ctrl-C mid-compression: exit 130 within seconds, the seed's file published incomplete with its
+    frames (each a packing at rest), readable."""
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.format(seed=0, mu=0.0))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "blobcli", "jam", str(scene), "--seeds", "2", "--workers", "0",
+                             "-o", str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = out / "small" / "seed-0.h5.partial"
+    deadline = time.monotonic() + 300  # (a cold numba cache compiles the step first)
+    while time.monotonic() < deadline and proc.poll() is None and not partial.exists():
+        time.sleep(0.05)
+    time.sleep(3.0)  # a few packings brought to rest
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    with h5py.File(out / "small" / "seed-0.h5") as f:
+        assert not f.attrs["complete"] and "signal" in f.attrs["stopped"]
+        assert len(f["observables/packing_fraction/value"]) >= 2
+    assert not (out / "small" / "seed-1.h5").exists()  # the seeds after it are not started

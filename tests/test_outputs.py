@@ -11,7 +11,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import EVERY_KIND_FAR_AWAY, cli, start_run
+from conftest import cli, start_run
 
 import blobcli.io.h5md as h5md
 import blobcli.io.interrupts as interrupts
@@ -31,8 +31,7 @@ kind = "plane"
 point = [0.0, 0.0]
 normal = [0.0, 1.0]
 """
-LONG = ONE.replace("steps = 40", "steps = 1000000").replace('name = "solo"', 'name = "solo"\ngrid = [5, 5]\nspacing = [1.2, 1.2]') \
-    + EVERY_KIND_FAR_AWAY  # the in-process tests' build
+LONG = ONE.replace("steps = 40", "steps = 1000000").replace('name = "solo"', 'name = "solo"\ngrid = [5, 5]\nspacing = [1.2, 1.2]')
 
 
 def scene_file(tmp_path, text=ONE, name="s.toml"):

@@ -95,6 +95,47 @@ def test_a_loaded_piston_comes_to_rest_where_the_pile_pushes_back_with_its_load(
     assert heavier[-1] < heights[-1] - 0.01  # twice the load packs the pile denser: measured 1.409 vs 1.322 m
 
 
+COLUMN = """[scene]
+duration = 15.0
+sleep = false
+drag = 2.0
+substeps = 8
+iterations = 4
+[[blob]]
+center = [0.0, 0.26]
+radius = 0.25
+vertices = 24
+grid = [1, 4]
+spacing = [0.6, 0.52]
+friction = 0.0
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+[[static]]
+kind = "box"
+center = [0.0, 2.22]
+size = [1.0, 0.2]
+load = 1.0
+load_direction = [0.0, -1.0]
+mass = 1.0
+friction = 0.0
+"""
+
+
+def test_the_floor_under_a_loaded_column_at_rest_records_the_load_and_the_weight():
+    """Four blobs stacked on a fixed floor under a 1 N loaded wall, brought to rest by drag: over the last
+    second the floor records the load plus the blobs' weight (measured 1.0003 of it) and the wall its load
+    (1.0002): the fixed collider's record counts every push, the velocity-level ones included."""
+    floor, wall = [], []
+    model, _, params = run(COLUMN, each=lambda n, s: (floor.append(s.static_impulse[0, 1]),
+                                                         wall.append(s.static_impulse[1, 1])))
+    last = slice(-int(round(1.0 / params.dt)), None)
+    weight = 9.81 * (1.0 / model.inv_mass).sum()
+    assert -np.mean(floor[last]) / params.dt == pytest.approx(1.0 + weight, rel=PISTON_FORCE)
+    assert np.mean(wall[last]) / params.dt == pytest.approx(1.0, rel=PISTON_FORCE)
+
+
 def test_a_press_squeezes_gish_without_losing_area_or_passing_through_and_it_comes_back_round():
     text = (SCENES / "press.toml").read_text()
     sc = parse_scene(text, "press")

@@ -13,6 +13,7 @@ build), which scenes of 32 blobs or more run. All give the same bits.
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import NamedTuple
 
@@ -259,13 +260,26 @@ def _now():
     return now
 
 
+EVERY_COLLIDER_KIND = "BLOBSIM_EVERY_COLLIDER_KIND"  # environment: "1", one build for every mix of colliders
+
+
 def configuration(model: Model, params: Params) -> Configuration:
-    """What the scene uses: which build of the step runs it."""
+    """What the scene uses: which build of the step runs it. With BLOBSIM_EVERY_COLLIDER_KIND=1 in the
+    environment, a scene with colliders runs the build for every collider kind (`every_collider_kind`)."""
     kinds = {s.kind for s in model.statics}
-    return Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
-                         planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
-                         polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded,
-                         periodic=params.box[0] > 0.0 and model.collides)
+    config = Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
+                           planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
+                           polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded,
+                           periodic=params.box[0] > 0.0 and model.collides)
+    return every_collider_kind(config) if os.environ.get(EVERY_COLLIDER_KIND) == "1" else config
+
+
+def every_collider_kind(config: Configuration) -> Configuration:
+    """The build for every collider kind, for a scene with colliders. A kind the scene lacks runs its kernel
+    over no rows, so the bits are the scene's own build's; and one build serves scenes with any mix of
+    colliders, where each mix would compile a build of its own (each links and optimizes the whole step
+    again: 6-12 s on the 2-core machine): a test suite, a sweep over scenes with different colliders."""
+    return config._replace(planes=True, segments=True, circles=True, polygons=True) if config.statics else config
 
 
 def settings(model: Model, params: Params) -> StepSettings:
