@@ -115,8 +115,9 @@ normal = [0.0, 1.0]
 
 
 # The builds most tests share, compiled before the tests fan out to one process per core (as a sweep compiles
-# before it fans out), so that the workers load them instead of compiling one build at the same time; each
-# tier's in two processes of about equal work. (scene texts or shipped scenes, whether with their own builds)
+# before it fans out), so that the workers load them instead of compiling one build at the same time: for each
+# tier, two processes of about equal work, each given scene texts or shipped scenes, and whether it compiles
+# their own builds (not the build for every collider kind).
 _MOVING = """
 [[static]]
 kind = "box"
