@@ -85,24 +85,14 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
     finally:
         bar.close()
         unfinished = [f for f in futures if not f.done()]
-        started = set()
-        if unfinished and stop is not None:
-            # A future reads "pending" while its task runs too: cancelled, it would no longer be waited
-            # for, and the cluster closed on runs still writing their files (a sweep of 8 points on 8
-            # workers, stopped beside other work, lost every point's frames). So only the tasks no worker
-            # has started are cancelled; the started ones are asked to stop and waited for.
-            try:
-                started = {key for keys in client.processing().values() for key in keys}
-            except Exception:  # noqa: BLE001 - the scheduler did not answer: cancel them all, as below
-                pass
         for future in unfinished:
-            if future.key not in started:
+            if future.status == "pending":
                 future.cancel()
         if unfinished and stop is not None:
             from distributed import wait
             try:
                 client.run(stop)
-                wait([f for f in unfinished if f.key in started], timeout=CLOSE_SECONDS)
+                wait(unfinished, timeout=CLOSE_SECONDS)
             except Exception:  # noqa: BLE001 - stopping is best effort: the cluster is closed next anyway
                 pass
         for future in futures:
