@@ -61,6 +61,8 @@ GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
     config.addinivalue_line("markers", "own_builds: run each scene's own build of the step, not the one for every collider kind")
+    config.addinivalue_line("markers", "alone: a timing bound that holds with no other test running beside it (CI runs "
+                            "these by themselves: pytest -m 'slow and alone' -n 0)")
 
 
 # The tests, and the runs they start as real processes, share one build of the step for every mix of collider
