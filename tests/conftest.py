@@ -151,8 +151,10 @@ def pytest_sessionstart(session):
     code = "import sys; from blobcli import load_scene, parse_scene; from blobcli.io.run import compile_scenes; " \
            "compile_scenes([load_scene(a) if a.endswith('.toml') else parse_scene(a, 'shared') for a in sys.argv[1:]])"
     own_env = {k: v for k, v in os.environ.items() if k != pipeline.EVERY_COLLIDER_KIND}
+    markexpr = config.getoption("markexpr")
+    tier = "slow" if markexpr.startswith("slow") else markexpr  # -m slow, -m 'slow and not alone'
     procs = [subprocess.Popen([sys.executable, "-c", code, *scenes], env=own_env if own else None)
-             for scenes, own in SHARED_BUILDS.get(config.getoption("markexpr"), ())]
+             for scenes, own in SHARED_BUILDS.get(tier, ())]
     for proc in procs:
         proc.wait()
 
