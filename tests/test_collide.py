@@ -32,6 +32,7 @@ from blobcli.sim.collide import (
     BLOBS_PER_STRIP,
     MAX_STRIPS,
     _find_pairs,
+    _near_convex_corner,
     _strips,
 )
 
@@ -76,6 +77,42 @@ def test_head_on_collision_conserves_momentum_and_mirror_symmetry(restitution):
         assert max(abs(state.pos[:32, 1].mean()), abs(state.pos[32:, 1].mean())) < AXIS  # each stays on the axis
         np.testing.assert_allclose(momentum(state, model), p0, rtol=0, atol=MOMENTUM_ROUNDOFF * 100)
     assert touched
+
+
+def _push_at_corner(ring, e0, x, y):
+    """What _resolve_contact does with a vertex at (x, y) inside the counter-clockwise ring, kept on edge e0:
+    the edge's t, outward normal n and C = (p - q) · n, then the turn near a convex corner: (e0, e1, t, n, C)."""
+    pos = np.ascontiguousarray(ring.T)
+    n = len(ring)
+    e1 = (e0 + 1) % n
+    ex, ey = ring[e1] - ring[e0]
+    length = np.hypot(ex, ey)
+    t = ((x - ring[e0, 0]) * ex + (y - ring[e0, 1]) * ey) / length ** 2
+    nx, ny = ey / length, -ex / length
+    C = (x - ring[e0, 0] - t * ex) * nx + (y - ring[e0, 1] - t * ey) * ny
+    return _near_convex_corner(pos, 1.0, 0, n, e0, e1, t, nx, ny, C, x, y)
+
+
+def test_a_push_near_a_convex_corner_turns_smoothly_through_its_bisector():
+    """A vertex inside a 32-gon near its corner at angle 0 (on the x axis): on the bisector it is pushed along
+    it (+x) to the corner, whichever of the corner's edges holds its contact; just off it, the push is the
+    mirror image of the push just off the other side, and near the bisector (from either edge), not along an
+    edge's normal, 5.6° off (the nearest edge alone flipped the push there). In an edge's flat middle nothing
+    changes."""
+    th = 2 * np.pi * np.arange(32) / 32
+    ring = np.stack([np.cos(th), np.sin(th)], axis=1)
+    depth = 0.002
+    for e0 in (0, 31):  # the edge above the corner, and the one below it
+        _, _, _, nx, ny, C = _push_at_corner(ring, e0, 1.0 - depth, 0.0)
+        assert (nx, ny) == pytest.approx((1.0, 0.0), abs=1e-12) and C == pytest.approx(-depth, rel=1e-12)
+    above = _push_at_corner(ring, 0, 1.0 - depth, 1e-6)
+    below = _push_at_corner(ring, 31, 1.0 - depth, -1e-6)
+    assert above[3] == pytest.approx(below[3], abs=1e-12) and above[4] == pytest.approx(-below[4], abs=1e-12)
+    assert abs(np.degrees(np.arctan2(above[4], above[3]))) < 0.1
+    mid = ((ring[8] + ring[9]) / 2) * (1 - depth)  # the middle of edge 8
+    _, _, t, nx, ny, C = _push_at_corner(ring, 8, *mid)
+    normal = np.array([ring[9, 1] - ring[8, 1], ring[8, 0] - ring[9, 0]]) / np.hypot(*(ring[9] - ring[8]))
+    assert (nx, ny) == pytest.approx(tuple(normal), abs=1e-15) and t == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("restitution", [0.0, 1.0])

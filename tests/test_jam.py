@@ -110,7 +110,9 @@ def test_a_small_bidisperse_packing_jams_near_the_published_point(tmp_path):
     for s in figures["seeds"]:
         assert 0.79 < s["phi_j"] < 0.86 and 3.7 < s["z_j"] < 4.4
         assert 1e-6 < s["reduced_pressure"] < 6e-6  # bisected to p ᾱ = 3e-6 (within 25%, or bracketed)
-        assert s["z_j_all"] <= s["z_j"] + 1e-12
+        # Removing a rattler of c <= 2 contacts from N blobs of mean z raises z exactly when c <= z / 2: always
+        # once z >= 4, not below (seen: z 3.9375 with them, 3.9231 without)
+        assert s["z_j_all"] <= s["z_j"] + 1e-12 or s["z_j_all"] < 4.0
     assert 0.3 < figures["mean"]["beta"] < 2.0  # z grows past onset (docs/jamming.md; soft discs 0.5)
     assert figures["mean"]["phi_j_sem"] > 0.0
     with h5py.File(out / "seed-0.h5") as f:

@@ -34,6 +34,11 @@ Macklin et al. 2014, but only where it is needed: applied to every contact it pu
 into a pile of equal blobs and blew it apart). Side by side, equal masses, or zero gravity: f or
 the ratio is 1, and momentum is exact.
 
+Near a convex corner of B, where p is behind both edges' lines, the push turns from the nearer edge's
+normal toward the corner's bisector as p nears it (_near_convex_corner): the nearer edge alone flips
+the push from one normal to the other where p crosses the bisector, and threw a vertex on it to one
+side. The velocity stage acts along each contact's last push normal (c_normal), not its edge's.
+
 Resolution order: Gauss-Seidel, each contact against the positions its predecessors left, and
 every second iteration in the reverse order: one order alone favours the vertices it visits
 first, which a mirror image of the scene visits last, so symmetric setups drifted apart.
@@ -510,7 +515,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
 
 
 @stage_kernel
-def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, contact_depth,
+def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
              stick_t, box, virial, h):
     """Gauss-Seidel over the contacts, in parallel where they share no blob.
@@ -532,8 +537,8 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             for c in range(CONTACTS_PER_VERTEX):
                 if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
                     _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                     c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box,
-                                     virial, h)
+                                     c_hit, c_normal, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t,
+                                     box, virial, h)
     # phases (2) then (3), each even s then odd s: one prange loop, so the inlined contact code is
     # compiled once in the parallel build (two loops compiled it twice: 25 s of a cold compile)
     for phase in range(4):
@@ -541,14 +546,14 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
         for q in numba.prange((strips - parity + 1 - shift) // 2):
             s = parity + 2 * q
             _resolve_between(s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
-                             material, c_edge, c_hit, contact_depth, center, radius, up_x, up_y, strip_of,
+                             material, c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of,
                              strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h)
 
 
 @inline_kernel
 def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                     c_hit, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing,
-                     backward, stick_edge, stick_t, box, virial, h):
+                     c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
+                     crossing, backward, stick_edge, stick_t, box, virial, h):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
     backward: each strip's in reverse order."""
@@ -565,12 +570,12 @@ def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, ori
                 for c in range(CONTACTS_PER_VERTEX):
                     if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
                         _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                         c_hit, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box,
-                                         virial, h)
+                                         c_hit, c_normal, contact_depth, center, radius, up_x, up_y, stick_edge,
+                                         stick_t, box, virial, h)
 
 
 @inline_kernel
-def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
                      contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box, virial, h):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
     inside there, push it out, with friction. (px, py): p where the other blob meets it (in a
@@ -640,7 +645,12 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         nx, ny, C = dx / dist, dy / dist, -dist
     elif C >= 0.0:
         return
+    else:
+        e0, e1, t, nx, ny, C = _near_convex_corner(pos, orient[blob], o, e, e0, e1, t, nx, ny, C, px, py)
+        qx, qy = px - C * nx, py - C * ny  # where p leaves the corner's wedge
+        c_edge[s, p] = e0
     c_hit[s, p] = 1
+    c_normal[0, s, p], c_normal[1, s, p] = nx, ny
     wp, we = inv_mass[p], inv_mass[e0]  # vertex masses are uniform within a blob
     # Heavy on light: a lighter blob below a heavier one acts heavier (see the module
     # docstring), by how directly it is below: f = Δz / (r_a + r_b), along -g.
@@ -690,6 +700,61 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     if a0 < 0 or cut < 1.0:  # held from now on where it touches now (after a slide: where it slid to)
         px, py = pos[0, p] + sx, pos[1, p] + sy
         stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, px, py), 0.0), 1.0)
+
+
+@inline_kernel
+def _near_convex_corner(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py):
+    """A vertex p inside the other blob, behind edge E = e0→e1 (C < 0, normal n_E): near a convex corner k
+    of E, where p is also behind the neighbouring edge F's line, the push turns toward F's normal, so
+    that it does not jump where p crosses the corner's bisector (the edge nearer to p pushing along its
+    own normal throws a vertex on the bisector to one side: which side, the ring's order decided).
+
+    With d_E = -C and d_F = -(p - k) · n_F the depths behind the two lines, d = min and D = max,
+    u = (D - d) / d: the push goes along n = (n_near + max(1 - u, 0) n_far) / |...|, the bisector on it
+    (u = 0), the nearer edge's normal from u = 1 on (D >= 2 d; in a polygon's flat middle, D - d is
+    the edge's length times the turn of the corner, far above the depth of a contact). Symmetric in
+    the two edges, so a mirror image of the pair gets the mirror image of the push. p goes along n by
+    s, to where it first leaves the corner's wedge: s = min over the lines L of d_L / (n · n_L); the
+    edge of that line takes the reaction, at the exit point. Returns (e0, e1, t, n_x, n_y, C) of the
+    contact, C = -s."""
+    if t < 0.5:  # corner k = e0, F = kf→k
+        k, kf = e0, prev_in_ring(e0, o, e)
+        fx, fy = pos[0, k] - pos[0, kf], pos[1, k] - pos[1, kf]
+        ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
+        turn = fx * ey - fy * ex  # F then E
+    else:  # corner k = e1, F = k→kf
+        k, kf = e1, next_in_ring(e1, o, e)
+        fx, fy = pos[0, kf] - pos[0, k], pos[1, kf] - pos[1, k]
+        ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
+        turn = ex * fy - ey * fx  # E then F
+    f = math.sqrt(fx * fx + fy * fy)
+    if orient * turn <= 0.0 or f == 0.0:  # reflex or straight corner: the nearest side is continuous there
+        return e0, e1, t, nx, ny, C
+    mx, my = orient * fy / f, -orient * fx / f
+    dE, dF = -C, -((px - pos[0, k]) * mx + (py - pos[1, k]) * my)
+    if dF <= 0.0:  # in front of F's line
+        return e0, e1, t, nx, ny, C
+    near, far = min(dE, dF), max(dE, dF)
+    w = 1.0 - (far - near) / near
+    if w <= 0.0:
+        return e0, e1, t, nx, ny, C
+    if dE <= dF:
+        bx, by = nx + w * mx, ny + w * my
+    else:
+        bx, by = mx + w * nx, my + w * ny
+    b = math.sqrt(bx * bx + by * by)
+    bx, by = bx / b, by / b
+    cE, cF = bx * nx + by * ny, bx * mx + by * my
+    sE = dE / cE if cE > 0.0 else math.inf
+    sF = dF / cF if cF > 0.0 else math.inf
+    if sE <= sF:
+        if sE == math.inf:
+            return e0, e1, t, nx, ny, C
+        q0, q1, depth = e0, e1, sE
+    else:
+        q0, q1, depth = (kf, k, sF) if t < 0.5 else (k, kf, sF)
+    x, y = px + depth * bx, py + depth * by
+    return q0, q1, min(max(_along(pos, q0, q1, x, y), 0.0), 1.0), bx, by, -depth
 
 
 @inline_kernel
@@ -777,25 +842,25 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, cent
 
 
 @stage_kernel
-def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
                           blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t,
                           box, virial, h):
     """Push every kept contact's vertex out of the other blob where it is inside, with friction
     (Gauss-Seidel, by strips; backward: in reverse order)."""
-    _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, blob_contact_depth, center,
-             radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4], backward, stick_edge, stick_t,
-             box, virial, h)
+    _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
+             blob_contact_depth, center, radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4],
+             backward, stick_edge, stick_t, box, virial, h)
 
 
 VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
 
 
 @stage_kernel
-def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, material, c_edge, c_hit, c_normal,
                             blob_contact_depth, h, center, box, virial):
     """Contact velocities between blobs: at every contact that pushed this substep (c_hit), the
     relative velocity of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q,
-    loses its approach along the edge's outward normal n (u · n < 0: one-sided, as the push) and its
+    loses its approach along the normal n of its last push (u · n < 0: one-sided, as the push) and its
     tangential part u_t by Coulomb's rule at velocity level: all of it if |u_t| h <= μ_s D (static),
     else μ_k D / h of it, D the vertex's push-out summed over the substep (the rule of the push).
 
@@ -828,7 +893,7 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
     for a in range(B):
         first[a + 1] += first[a]
     K = first[B]
-    which = np.empty((3, K), np.int64)
+    which = np.empty((4, K), np.int64)
     for a in numba.prange(B):
         if not awake[a]:
             continue
@@ -839,6 +904,7 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
                     e0 = c_edge[c, p]
                     b = blob_of[e0]
                     which[0, k], which[1, k], which[2, k] = p, e0, next_in_ring(e0, offsets[b], offsets[b + 1])
+                    which[3, k] = c
                     k += 1
     share = np.zeros(pos.shape[1])  # how many of the contacts each vertex is in
     for k in range(K):
@@ -851,8 +917,9 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
     geometry = np.empty((7, K))
     for k in numba.prange(K):
         (geometry[0, k], geometry[1, k], geometry[2, k], geometry[3, k], geometry[4, k], geometry[5, k],
-         geometry[6, k]) = _contact_geometry(which[0, k], which[1, k], which[2, k], pos, inv_mass, blob_of, awake,
-                                             orient, material, blob_contact_depth, h, share, center, box)
+         geometry[6, k]) = _contact_geometry(which[0, k], which[1, k], which[2, k], which[3, k], pos, inv_mass,
+                                             blob_of, awake, c_normal, material, blob_contact_depth, h, share, center,
+                                             box)
     impulse = np.empty((2, K))
     for _ in range(VELOCITY_PASSES):
         for k in numba.prange(K):  # every impulse from the same velocities
@@ -877,9 +944,10 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, orient,
 
 
 @inline_kernel
-def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material, depth, h, share, center, box):
-    """(t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h) of the contact of vertex p with edge e0→e1
-    (see blob_contact_velocities); a zero-length edge gets scale 0 (no impulse)."""
+def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, material, depth, h, share, center, box):
+    """(t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h) of vertex p's contact c with edge e0→e1
+    (see blob_contact_velocities), n the normal of its last push; a zero-length edge gets scale 0 (no
+    impulse)."""
     a, blob = blob_of[p], blob_of[e0]
     ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
     len2 = ex * ex + ey * ey
@@ -887,12 +955,11 @@ def _contact_geometry(p, e0, e1, pos, inv_mass, blob_of, awake, orient, material
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     sx, sy = image(center, a, blob, box)
     t = min(max(_along(pos, e0, e1, pos[0, p] + sx, pos[1, p] + sy), 0.0), 1.0)
-    length = math.sqrt(len2)
     we = inv_mass[e0] if awake[blob] else 0.0
     W = inv_mass[p] + ((1.0 - t) ** 2 + t * t) * we
     static, kinetic = _friction_limits(material, a, blob, depth[p] / h)
-    return (t, orient[blob] * ey / length, -orient[blob] * ex / length,
-            1.0 / (W * max(share[p], share[e0], share[e1])), we, static, kinetic)
+    return (t, c_normal[0, c, p], c_normal[1, c, p], 1.0 / (W * max(share[p], share[e0], share[e1])), we, static,
+            kinetic)
 
 
 @inline_kernel

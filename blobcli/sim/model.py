@@ -206,7 +206,8 @@ class State(NamedTuple):
     c_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64, vertex i's kept contacts (sim/collide.py): the nearest
     #                    edge (by its first vertex) of a neighbouring blob, or -1; found once per step and followed
     #                    along the ring ...
-    c_hit: np.ndarray  # (CONTACTS_PER_VERTEX, N) uint8 ... 1 where that contact has pushed this substep
+    c_hit: np.ndarray  # (CONTACTS_PER_VERTEX, N) uint8 ... 1 where that contact has pushed this substep ...
+    c_normal: np.ndarray  # (2, CONTACTS_PER_VERTEX, N) ... and the unit normal of its last push (the velocity stage's)
     anchor: np.ndarray  # (2, N) m, positions when the contacts were found ...
     budget: np.ndarray  # (B,) m ... how far from there each blob's vertices may go before they are found again ...
     moved: np.ndarray  # (B,) m ... and how far they have gone
@@ -329,7 +330,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   spring_lam=np.zeros(len(model.spring_pairs)),
                   center=np.zeros((blobs, 2)), radius=np.zeros(blobs), edges=np.zeros((5, n)),
                   c_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
-                  c_hit=np.zeros((CONTACTS_PER_VERTEX, n), np.uint8),
+                  c_hit=np.zeros((CONTACTS_PER_VERTEX, n), np.uint8), c_normal=np.zeros((2, CONTACTS_PER_VERTEX, n)),
                   anchor=np.zeros((2, n)), budget=np.zeros(blobs), moved=np.zeros(blobs),
                   blob_contact_depth=np.zeros(n),
                   stick_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),

@@ -185,9 +185,9 @@ def _advance(steps, state, model, settings, clock):
                     found = True
                     t = _lap(clock, LAP_BLOB_DETECT, t)
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
-                                          m.orient, m.material, s.c_edge, s.c_hit, s.blob_contact_depth, s.center,
-                                          s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge, s.stick_t,
-                                          box, s.packing[0], h)
+                                          m.orient, m.material, s.c_edge, s.c_hit, s.c_normal, s.blob_contact_depth,
+                                          s.center, s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge,
+                                          s.stick_t, box, s.packing[0], h)
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
@@ -213,8 +213,8 @@ def _advance(steps, state, model, settings, clock):
                             s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, LAP_RESTITUTION, t)
             if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
-                blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
-                                        m.material, s.c_edge, s.c_hit, s.blob_contact_depth, h, s.center, box,
+                blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.material,
+                                        s.c_edge, s.c_hit, s.c_normal, s.blob_contact_depth, h, s.center, box,
                                         s.packing[0])
                 t = _lap(clock, LAP_BLOB_VELOCITIES, t)
             if COLLIDES:  # blob pairs leave each other at e × impact speed, never faster

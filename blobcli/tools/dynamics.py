@@ -96,9 +96,11 @@ def highest_bounce(substeps: int, iterations: int) -> float:
     return float((peaks.max() - rest) / 1.7)
 
 
-def head_on(restitution: float, hard: bool = True, radius: float = 0.4, steps: int = 90):
-    """Two blobs meeting head-on at 3 m/s each: (parting speed over approach speed, worst distance
-    of a blob's centre from the axis in m, worst vertex mirror error in m)."""
+def head_on(restitution: float, hard: bool = True, radius: float = 0.4, steps: int = 90,
+            friction: float | None = None):
+    """Two blobs meeting head-on at 3 m/s each, corner to corner (with the scene's default friction, or
+    `friction` static and kinetic): (parting speed over approach speed, worst distance of a blob's centre
+    from the axis in m, worst vertex mirror error in m)."""
     th = 2 * np.pi * np.arange(32) / 32
     a = np.stack([-1 + radius * np.cos(th), radius * np.sin(th)], axis=1)
     b = (a * [-1, 1])[::-1]
@@ -106,6 +108,8 @@ def head_on(restitution: float, hard: bool = True, radius: float = 0.4, steps: i
     def points(p):
         return "[" + ", ".join(f"[{float(x)!r}, {float(y)!r}]" for x, y in p) + "]"
     extra = f"restitution = {restitution}\n" + (HARD if hard else "")
+    if friction is not None:
+        extra += f"friction = {friction!r}\nstatic_friction = {friction!r}\n"
     model, state, params = _run(f"[scene]\ngravity = [0.0, 0.0]\n[[blob]]\npoints = {points(a)}\n"
                                 f"velocity = [3.0, 0.0]\n{extra}[[blob]]\npoints = {points(b)}\n"
                                 f"velocity = [-3.0, 0.0]\n{extra}")
@@ -190,6 +194,9 @@ def main() -> None:
     _, axis, mirror = head_on(0.0, hard=False)
     print(f"default blobs head-on (r = 0.4 m) | stay on the axis | {axis * 1e3:.3f} mm off it, "
           f"vertices mirrored within {mirror * 1e3:.2f} mm")
+    for seconds in (0.8, 3.0):
+        _, axis, _ = head_on(0.0, hard=False, steps=round(seconds * 60), friction=0.0)
+        print(f"default blobs head-on, frictionless, {seconds} s | stay on the axis | {axis * 1e3:.3f} mm off it")
     print(f"default r = 1 m blob dropped straight, 30 s | stays centred | {dropped_straight() * 1e3:.2g} mm off")
     worst, end, crossed = crushed_light_blob()
     print(f"crusher.toml: 0.1 kg blob under 3 × 15 kg | keeps its area, never tangles | within {worst:.2%} "
