@@ -717,15 +717,14 @@ def _near_convex_corner(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py):
     s, to where it first leaves the corner's wedge: s = min over the lines L of d_L / (n · n_L); the
     edge of that line takes the reaction, at the exit point. Returns (e0, e1, t, n_x, n_y, C) of the
     contact, C = -s."""
+    ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
     if t < 0.5:  # corner k = e0, F = kf→k
         k, kf = e0, prev_in_ring(e0, o, e)
         fx, fy = pos[0, k] - pos[0, kf], pos[1, k] - pos[1, kf]
-        ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
         turn = fx * ey - fy * ex  # F then E
     else:  # corner k = e1, F = k→kf
         k, kf = e1, next_in_ring(e1, o, e)
         fx, fy = pos[0, kf] - pos[0, k], pos[1, kf] - pos[1, k]
-        ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
         turn = ex * fy - ey * fx  # E then F
     f = math.sqrt(fx * fx + fy * fy)
     if orient * turn <= 0.0 or f == 0.0:  # reflex or straight corner: the nearest side is continuous there
@@ -747,9 +746,9 @@ def _near_convex_corner(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py):
     cE, cF = bx * nx + by * ny, bx * mx + by * my
     sE = dE / cE if cE > 0.0 else math.inf
     sF = dF / cF if cF > 0.0 else math.inf
+    if sE == math.inf and sF == math.inf:  # (a corner too sharp for the turned push to leave by)
+        return e0, e1, t, nx, ny, C
     if sE <= sF:
-        if sE == math.inf:
-            return e0, e1, t, nx, ny, C
         q0, q1, depth = e0, e1, sE
     else:
         q0, q1, depth = (kf, k, sF) if t < 0.5 else (k, kf, sF)
