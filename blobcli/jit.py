@@ -3,8 +3,16 @@
 cache=True keeps compiled kernels on disk between runs; error_model="numpy" lets
 divisions skip the zero check so loops vectorize; fastmath stays off because it
 reorders sums, and runs must be bit-identical. Small helpers called per vertex or per
-edge are inlined into their callers at the numba IR level (`inline_kernel`): left as
-calls, the perimeter sweep ran 7× slower.
+edge (`inline_kernel`) are compiled once each and inlined into their callers by LLVM
+(forceinline: the alwaysinline attribute). Left as calls, the perimeter sweep ran 7×
+slower; inlined at the numba IR level (inline="always"), each was typed and lowered
+again at every call site, and the contact stage's build took 37 s of a cold compile.
+A helper has no Python entry (no_cpython_wrapper): only kernels call it.
+
+`ir_inline_kernel` (numba IR inlining) is kept for the contact stages' per-contact
+bodies, each called at one place: inlined by LLVM instead, the parallel build's contact
+resolve ran 1.9× slower at 1,000 blobs (27.7 against 14.2 ms per step, stage clock; the
+serial build was not slower). Why is not known; the measurement decided (dev, 2026-11-26).
 """
 
 import functools
@@ -14,13 +22,14 @@ from pathlib import Path
 
 import numba
 
-FLAGS = dict(cache=True, error_model="numpy", nogil=True)
+FLAGS = dict(cache=True, error_model="numpy", nogil=True, no_cfunc_wrapper=True)  # (no C callback is taken of a kernel)
 kernel = numba.njit(**FLAGS)
-inline_kernel = numba.njit(inline="always", **FLAGS)
+inline_kernel = numba.njit(forceinline=True, no_cpython_wrapper=True, **FLAGS)
+ir_inline_kernel = numba.njit(inline="always", **FLAGS)
 
 _STAGES: dict[int, tuple] = {}  # id(serial build) -> (serial build, its Python function)
-_BUILDS: dict[tuple, object] = {}  # (id(serial build), parallel, bound configuration) -> that build
-_ASKED: dict[tuple, object] = {}  # (id(serial build), parallel, whole configuration) -> its build: the step asks
+_BUILDS: dict[tuple, object] = {}  # (id(serial build), parallel, bound configuration, entry) -> that build
+_ASKED: dict[tuple, object] = {}  # (id(serial build), parallel, whole configuration, entry) -> its build: the step asks
 #                                   once per compiled call, and finding what a kernel reads walks its callees
 
 
@@ -77,7 +86,7 @@ def source_token() -> str:
     return digest.hexdigest()[:8]
 
 
-def build(serial, is_parallel: bool = False, config: dict | None = None):
+def build(serial, is_parallel: bool = False, config: dict | None = None, entry: bool = True):
     """The build of a stage kernel for one configuration (a dict of configuration names to bool or
     int values), serial or parallel: the serial build itself when the kernel reads none of those
     names and has no prange loop to run in parallel, else a renamed copy of its code compiled with
@@ -85,9 +94,10 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
     bytecode, not its globals or flags, so two builds of one function under one name would
     overwrite each other's cache: numba issue #6845) and the source it was built from
     (`source_token`). Built on first use, when every module it names is loaded; compiled on its
-    first call (or loaded from the disk cache)."""
+    first call (or loaded from the disk cache). The builds it calls have no Python entry (entry
+    False: no wrapper to unbox arguments from Python objects, a tenth of the step's cold compile)."""
     config = config or {}
-    asked = (id(serial), is_parallel, tuple(sorted(config.items())))
+    asked = (id(serial), is_parallel, tuple(sorted(config.items())), entry)
     if asked in _ASKED:
         return _ASKED[asked]
     _, fn = _STAGES[id(serial)]
@@ -96,22 +106,22 @@ def build(serial, is_parallel: bool = False, config: dict | None = None):
     if not bound and not parallel:
         _ASKED[asked] = serial
         return serial
-    key = (id(serial), parallel, bound)
+    key = (id(serial), parallel, bound, entry)
     twin = _BUILDS.get(key)
     if twin is None:
         scope = dict(fn.__globals__)
         scope.update(bound)
         suffix = ("".join(f"_{name.lower()}{int(value)}" for name, value in bound) + ("_parallel" if parallel else "")
-                  + f"_src{source_token()}")
+                  + ("" if entry else "_inner") + f"_src{source_token()}")
         code = fn.__code__.replace(co_name=fn.__name__ + suffix, co_qualname=fn.__qualname__ + suffix)
         function = types.FunctionType(code, scope, code.co_name, fn.__defaults__, fn.__closure__)
         # parallel=True where the code has prange loops of its own; a stage that only calls others
         # (the driver, say) is parallel through them
         own_loops = parallel and "prange" in fn.__code__.co_names
-        twin = _BUILDS[key] = numba.njit(parallel=own_loops, **FLAGS)(function)
+        twin = _BUILDS[key] = numba.njit(parallel=own_loops, no_cpython_wrapper=not entry, **FLAGS)(function)
         for name in fn.__code__.co_names:  # after registering the twin: a module's kernels name each other
             if id(scope.get(name)) in _STAGES:
-                scope[name] = build(scope[name], is_parallel, config)
+                scope[name] = build(scope[name], is_parallel, config, entry=False)
     _ASKED[asked] = twin
     return twin
 

@@ -37,7 +37,7 @@ unused = [collide.find_blob_pairs, collide.keep_blob_contacts, collide.resolve_b
           collide.blob_contact_velocities, collide.blob_restitution, area.area_xpbd, area.area_gas,
           area.area_springs, statics._collide_segment, statics._collide_circle, statics._collide_polygon]
 print([k.py_func.__name__ for k in unused if k.overloads])
-print([b.py_func.__name__ for b in jit._BUILDS.values() if b.overloads and b.py_func.__name__.endswith("_parallel")])
+print([b.py_func.__name__ for b in jit._BUILDS.values() if b.overloads and "_parallel_" in b.py_func.__name__])
 """
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr

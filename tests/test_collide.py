@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 from conftest import (
@@ -90,7 +91,13 @@ def _push_at_corner(ring, e0, x, y):
     t = ((x - ring[e0, 0]) * ex + (y - ring[e0, 1]) * ey) / length ** 2
     nx, ny = ey / length, -ex / length
     C = (x - ring[e0, 0] - t * ex) * nx + (y - ring[e0, 1] - t * ey) * ny
-    return _near_convex_corner(pos, 1.0, 0, n, e0, e1, t, nx, ny, C, x, y)
+    return _corner_push(pos, 1.0, 0, n, e0, e1, t, nx, ny, C, x, y)
+
+
+@numba.njit
+def _corner_push(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py):
+    """_near_convex_corner, from Python (a helper has no Python entry: jit.inline_kernel)."""
+    return _near_convex_corner(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py)
 
 
 def test_a_push_near_a_convex_corner_turns_smoothly_through_its_bisector():

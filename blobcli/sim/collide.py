@@ -82,7 +82,7 @@ import math
 import numba
 import numpy as np
 
-from ..jit import inline_kernel, kernel, stage_kernel
+from ..jit import inline_kernel, ir_inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
 from .ring import centre_motion, next_in_ring, prev_in_ring, ring_contains, ring_radius, vertex_normal
 
@@ -531,50 +531,51 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
     result is the same for any number of threads. Contacts across strips are looked for only where
     the pairs say there are some (crossing, far: see _strips)."""
     strips = strip_start.shape[0] - 1
-    if far:
-        for q in range(pos.shape[1]):
-            p = pos.shape[1] - 1 - q if backward else q
-            for c in range(CONTACTS_PER_VERTEX):
-                if c_edge[c, p] >= 0 and abs(strip_of[blob_of[p]] - strip_of[blob_of[c_edge[c, p]]]) >= 2:
-                    _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                     c_hit, c_normal, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t,
-                                     box, virial, h)
-    # phases (2) then (3), each even s then odd s: one prange loop, so the inlined contact code is
-    # compiled once in the parallel build (two loops compiled it twice: 25 s of a cold compile)
-    for phase in range(4):
-        shift, parity = 1 - phase // 2, phase % 2  # s|s+1 (shift 1), then s|s (shift 0)
-        for q in numba.prange((strips - parity + 1 - shift) // 2):
+    # phase 0 is (1), phases 1-4 are (2) then (3), each even s then odd s: one prange loop with one call of
+    # the inlined contact code (jit.ir_inline_kernel), so that it is typed and compiled once (a loop per
+    # phase compiled it once each: 25 s of a cold compile in the parallel build; the far contacts' loop of
+    # its own took the serial build's _resolve from 19 to 36 s, dev 2026-11-26)
+    for phase in range(5):
+        shift, parity = 1 - (phase - 1) // 2, (phase - 1) % 2  # s|s+1 (shift 1), then s|s (shift 0)
+        tasks = (1 if far else 0) if phase == 0 else (strips - parity + 1 - shift) // 2
+        for q in numba.prange(tasks):  # (phase 0 has one task: that order is sequential)
             s = parity + 2 * q
-            _resolve_between(s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
+            _resolve_between(phase == 0, s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
                              material, c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of,
                              strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h)
 
 
-@inline_kernel
-def _resolve_between(s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
+@ir_inline_kernel
+def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                      c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
                      crossing, backward, stick_edge, stick_t, box, virial, h):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
-    backward: each strip's in reverse order."""
-    for side in range(1 if other == s else 2):
+    backward: each strip's in reverse order. far: instead, the contacts across strips two or more
+    apart, every blob's vertices in vertex order (blobs in index order: vertex order)."""
+    blob_count = offsets.shape[0] - 1
+    for side in range(1 if other == s or far else 2):
         here, there = (s, other) if side == 0 else (other, s)
-        first, last = strip_start[here], strip_start[here + 1]
+        first, last = (0, blob_count) if far else (strip_start[here], strip_start[here + 1])
         for k in range(first, last):
-            a = strip_blobs[first + last - 1 - k if backward else k]
-            if other != s and not crossing[a]:
+            j = first + last - 1 - k if backward else k
+            a = j if far else strip_blobs[j]
+            if other != s and not far and not crossing[a]:
                 continue
             o, e = offsets[a], offsets[a + 1]
             for q in range(o, e):
                 p = o + e - 1 - q if backward else q
                 for c in range(CONTACTS_PER_VERTEX):
-                    if c_edge[c, p] >= 0 and strip_of[blob_of[c_edge[c, p]]] == there:
+                    if c_edge[c, p] < 0:
+                        continue
+                    theirs = strip_of[blob_of[c_edge[c, p]]]
+                    if abs(theirs - strip_of[a]) >= 2 if far else theirs == there:
                         _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                                          c_hit, c_normal, contact_depth, center, radius, up_x, up_y, stick_edge,
                                          stick_t, box, virial, h)
 
 
-@inline_kernel
+@ir_inline_kernel
 def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
                      contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box, virial, h):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
@@ -942,7 +943,7 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, materia
                             -we * jy / inv_mass[e0])
 
 
-@inline_kernel
+@ir_inline_kernel
 def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, material, depth, h, share, center, box):
     """(t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h) of vertex p's contact c with edge e0→e1
     (see blob_contact_velocities), n the normal of its last push; a zero-length edge gets scale 0 (no
@@ -961,7 +962,7 @@ def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, mat
             kinetic)
 
 
-@inline_kernel
+@ir_inline_kernel
 def _contact_impulse(p, e0, e1, vel, t, nx, ny, scale, static, kinetic):
     """The impulse J (see blob_contact_velocities) of a contact with edge point t, normal n, the scale
     1 / (W k) and the static and kinetic limits (see _contact_geometry)."""
