@@ -55,10 +55,12 @@ from .walls import account_contacts, finish_loaded_walls, place_walls, yield_loa
 
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
-# the stage clock's slots
+# the stage clock's slots, and none: numpy integers, which numba types as int64, so that _lap is compiled
+# once (a Python int is a literal to numba, and each slot compiled a _lap of its own)
 (LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE,
  LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) \
-    = range(len(STAGES))
+    = map(np.int64, range(len(STAGES)))
+NO_LAP = np.int64(-1)
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
 
 
@@ -122,8 +124,10 @@ def _advance(steps, state, model, settings, clock):
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.bool_),
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
-    awake_count = np.count_nonzero(s.awake)
-    t = _lap(clock, -1, 0.0)
+    awake_count = 0
+    for b in range(blob_count):
+        awake_count += s.awake[b]
+    t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
     for n in range(steps):
