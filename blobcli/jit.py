@@ -6,7 +6,7 @@ reorders sums, and runs must be bit-identical. Small helpers called per vertex o
 edge (`inline_kernel`) are compiled once each and inlined into their callers by LLVM
 (forceinline: the alwaysinline attribute). Left as calls, the perimeter sweep ran 7×
 slower; inlined at the numba IR level (inline="always"), each was typed and lowered
-again at every call site, and the contact stage's build took 37 s of a cold compile.
+again at every call site, and the contact resolve alone took 37 s of a cold compile.
 A helper has no Python entry (no_cpython_wrapper): only kernels call it.
 
 `ir_inline_kernel` (numba IR inlining) is kept for the contact stages' per-contact
