@@ -49,7 +49,7 @@ from .integrate import (
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
-from .sleep import update_sleep
+from .sleep import awake_count, update_sleep
 from .statics import collide_statics
 from .walls import account_contacts, finish_loaded_walls, place_walls, yield_loaded_walls
 
@@ -124,14 +124,12 @@ def _advance(steps, state, model, settings, clock):
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.bool_),
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
-    awake_count = 0
-    for b in range(blob_count):
-        awake_count += s.awake[b]
+    awake_blobs = awake_count(s.awake)
     t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
     for n in range(steps):
-        if awake_count == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
+        if awake_blobs == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
             s.steps_done[0] += 1
             continue
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
@@ -232,7 +230,7 @@ def _advance(steps, state, model, settings, clock):
             keep_touching(m.offsets, m.blob_of, s.awake, s.c_edge, s.c_hit, pairs, partners, s.packing[1],
                           s.packing[2])
         if SLEEP:  # islands of blobs at rest fall asleep, islands with a mover wake
-            awake_count = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
+            awake_blobs = update_sleep(s.position, s.previous, s.velocity, m.offsets, pairs, s.contact_depth,
                                        s.contact_material, s.c_edge, s.awake, s.still, s.still_center,
                                        s.still_angle, c.sleep_speed, c.time_to_sleep, c.dt)
             t = _lap(clock, LAP_SLEEP, t)

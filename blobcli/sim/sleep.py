@@ -81,7 +81,16 @@ def update_sleep(pos, prev, vel, offsets, pairs, contact_depth, contact_material
                 contact_depth[i] = 0.0
                 c_edge[:, i] = -1
         awake[b] = keep_awake
-    return np.count_nonzero(awake)
+    return awake_count(awake)
+
+
+@kernel
+def awake_count(awake):
+    """How many blobs are awake (a loop: numpy's count_nonzero is a kernel of its own to compile)."""
+    count = 0
+    for b in range(awake.shape[0]):
+        count += awake[b] != 0
+    return count
 
 
 @kernel
