@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -65,16 +66,17 @@ def pytest_configure(config):
                             "these by themselves: pytest -m 'slow and alone' -n 0)")
 
 
-# The tests, and the runs they start as real processes, share one build of the step for every mix of collider
-# kinds (pipeline.every_collider_kind: the same bits, tested in test_builds.py), so that the suite compiles
-# about half as many builds on a cold numba cache. Tests marked own_builds run each scene's own build.
-os.environ[pipeline.EVERY_COLLIDER_KIND] = "1"
+# The tests, and the runs they start as real processes, share one build of the step per area method and box
+# (pipeline.shared_build: the same bits, tested in test_builds.py), so that the suite compiles a few builds on a
+# cold numba cache, not one per mix of colliders, walls, sleeping and blob count. Tests marked own_builds run
+# each scene's own build.
+os.environ[pipeline.SHARED_BUILD] = "1"
 
 
 @pytest.fixture(autouse=True)
 def each_scene_its_own_build_where_marked(request, monkeypatch):
     if request.node.get_closest_marker("own_builds") is not None:
-        monkeypatch.delenv(pipeline.EVERY_COLLIDER_KIND)
+        monkeypatch.delenv(pipeline.SHARED_BUILD)
 
 
 def scene(text: str):
@@ -118,45 +120,45 @@ normal = [0.0, 1.0]
 
 # The builds most tests share, compiled before the tests fan out to one process per core (as a sweep compiles
 # before it fans out), so that the workers load them instead of compiling one build at the same time: for each
-# tier, two processes of about equal work, each given scene texts or shipped scenes, and whether it compiles
-# their own builds (not the build for every collider kind).
-_MOVING = """
-[[static]]
-kind = "box"
-center = [0.0, -3.0]
-size = [4.0, 1.0]
-path = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 1.0, 0.0]]
-"""
+# tier, two lanes of about equal work, run side by side; a lane runs its processes one after the other, each
+# given scene texts or shipped scenes and whether it compiles their own builds (not the shared build).
 _BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
 _SCENES = Path(__file__).resolve().parent.parent / "scenes"
 SHARED_BUILDS = {
-    # the blob-contact build (two blobs on a floor); one blob on a floor, on a path, sleeping or not, gas
-    "not slow": (([_BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n" + FLOOR], False),
-                 ([_BLOB + FLOOR, _BLOB + FLOOR + _MOVING, "[scene]\nsleep = false\n" + _BLOB + FLOOR,
-                   "[scene]\nsleep = false\n" + _BLOB + FLOOR + _MOVING, _BLOB,
-                   '[scene]\nmethod = "gas"\n' + _BLOB + FLOOR], False)),
+    # the shared builds (pipeline.shared_build) for kot and a periodic box, one after the other in one process
+    # (the stages they share compile once); test_builds.py's own one-blob build, then gas's shared build
+    "not slow": ([([_BLOB + FLOOR, "[scene]\nperiodic = [4.0, 4.0]\n" + _BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n"],
+                   False)],
+                 [(["[scene]\nduration = 0.1\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR], True),
+                  (['[scene]\nmethod = "gas"\n' + _BLOB], False)]),
     # the parallel builds, in one process: two processes compiling one parallel build at once can leave cache
     # files that crash every later load (numba issue #10128); and the own builds test_builds.py compares
-    "slow": (([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False),
-             ([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True)),
+    "slow": ([([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False)],
+             [([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True)]),
 }
 
 
 def pytest_sessionstart(session):
     """Before xdist starts its worker processes (its own hook runs last): compile this tier's SHARED_BUILDS
-    (with them warm this costs a Python start)."""
+    (with them warm this costs a Python start per process)."""
     config = session.config
     if hasattr(config, "workerinput") or (config.getoption("numprocesses", None) or 0) < 2:
         return
     code = "import sys; from blobcli import load_scene, parse_scene; from blobcli.io.run import compile_scenes; " \
            "compile_scenes([load_scene(a) if a.endswith('.toml') else parse_scene(a, 'shared') for a in sys.argv[1:]])"
-    own_env = {k: v for k, v in os.environ.items() if k != pipeline.EVERY_COLLIDER_KIND}
+    own_env = {k: v for k, v in os.environ.items() if k != pipeline.SHARED_BUILD}
     markexpr = config.getoption("markexpr")
     tier = "slow" if markexpr.startswith("slow") else markexpr  # -m slow, -m 'slow and not alone'
-    procs = [subprocess.Popen([sys.executable, "-c", code, *scenes], env=own_env if own else None)
-             for scenes, own in SHARED_BUILDS.get(tier, ())]
-    for proc in procs:
-        proc.wait()
+
+    def run_lane(lane):
+        for scenes, own in lane:
+            subprocess.run([sys.executable, "-c", code, *scenes], env=own_env if own else None)
+
+    lanes = [threading.Thread(target=run_lane, args=(lane,)) for lane in SHARED_BUILDS.get(tier, ())]
+    for lane in lanes:
+        lane.start()
+    for lane in lanes:
+        lane.join()
 
 
 @pytest.fixture

@@ -78,26 +78,39 @@ def test_a_cold_build_prints_what_it_compiles_unless_quiet(tmp_path, monkeypatch
     assert code == 0 and "compiling" not in err, err
 
 
+_RESTING = ONE_BLOB.replace("duration = 0.1", "duration = 4.0").replace("center = [0.0, 1.0]", "center = [0.0, 0.5]")
+_ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["drum", "press", "piston"])
-def test_the_build_for_every_collider_kind_gives_a_scenes_own_bits(name):
-    """The build for every collider kind (pipeline.every_collider_kind, which the suite runs) gives the bits of a
-    scene's own build: on shipped scenes with circles, moving and loaded walls (gish's and crusher's goldens,
-    made with their own builds and compared in the fast tier, cover planes, segments and polygons)."""
+@pytest.mark.parametrize("name", ["drum", "press", "piston", "press sleep off", "resting", "alone"])
+def test_the_shared_build_gives_a_scenes_own_bits(name):
+    """The shared build (pipeline.shared_build, which the suite runs) gives the bits of a scene's own build:
+    shipped scenes with circles, moving and loaded walls; the press with sleeping off (the sleep stage runs,
+    nobody sleeps); one blob coming to rest on a floor and falling asleep (blob contacts over no pairs, the
+    moving-wall code with none moving, every blob asleep); one blob alone, no collider, sleeping off (every
+    collider stage over no colliders). gish's and crusher's goldens, made with their own builds, are compared
+    in the fast tier under the shared build too."""
     from pathlib import Path
 
-    from blobcli import load_scene
+    from blobcli import load_scene, parse_scene
     from blobcli.sim.model import PARALLEL_BLOBS
-    sc = load_scene(Path(__file__).resolve().parent.parent / "scenes" / f"{name}.toml")
+    shipped = Path(__file__).resolve().parent.parent / "scenes" / f"{name.split()[0]}.toml"
+    text = {"resting": _RESTING, "alone": _ALONE}.get(name) or shipped.read_text()
+    if name.endswith("sleep off"):
+        text = text.replace("[scene]", "[scene]\nsleep = false", 1)
+    sc = parse_scene(text, name) if name in ("resting", "alone") or name.endswith("off") else load_scene(shipped)
     assert sc.blob_count < PARALLEL_BLOBS  # serial: the parallel builds give the same bits (test_collide)
     params = build_params(sc)
     model, _ = build(sc)
     own = pipeline.settings(model, params)
-    every = own._replace(config=pipeline.every_collider_kind(own.config))
-    assert every.config != own.config
+    shared = own._replace(config=pipeline.shared_build(own.config))
+    assert shared.config != own.config
     runs = []
-    for step_settings in (own, every):
+    for step_settings in (own, shared):
         model, state = build(sc)
-        pipeline.advance(state, model, params, 120, step_settings=step_settings)
-        runs.append((state.pos.tobytes(), state.vel.tobytes(), state.static_impulse.tobytes()))
+        pipeline.advance(state, model, params, 240, step_settings=step_settings)  # resting: asleep from step ~170
+        runs.append((state.pos.tobytes(), state.vel.tobytes(), state.static_impulse.tobytes(), state.awake.tobytes()))
     assert runs[0] == runs[1]
+    if name == "resting":
+        assert not state.awake.any()  # it did fall asleep: the all-asleep step ran in both builds

@@ -9,6 +9,7 @@ from conftest import (
     AREA_ROUNDOFF,
     AXIS,
     BLOB_PENETRATION,
+    FLOOR,
     HEAD_ON_E0,
     HEAD_ON_E1,
     LOADED_AREA,
@@ -243,8 +244,9 @@ def test_the_parallel_broad_phase_finds_the_pairs_in_the_serial_builds_order(see
                                   _find_pairs(center, radius, 10**9)[0])
 
 
+@pytest.mark.own_builds  # (the shared build runs them, over no pairs)
 def test_collision_stages_do_not_run_with_one_blob():
-    sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n")
+    sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR)  # (test_builds.py's one-blob build)
     model, state = build(sc)
     clock = {}
     step(state, model, build_params(sc), clock)

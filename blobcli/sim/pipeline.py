@@ -51,7 +51,7 @@ from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
-from .walls import account_contacts, finish_loaded_walls, place_walls, yield_loaded_walls
+from .walls import account_contacts, any_moves, finish_loaded_walls, place_walls, yield_loaded_walls
 
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
@@ -102,7 +102,7 @@ class StepSettings(NamedTuple):
     up_y: float
     rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
     sleep_speed: float  # m/s: islands at rest go to sleep once every blob has gone slower than this, on average ...
-    time_to_sleep: float  # s ... for this long
+    time_to_sleep: float  # s ... for this long (∞ with sleeping off: the shared build runs the sleep stage)
     box_x: float  # m: the periodic box's sides; 0: an open world
     box_y: float
     box_tilt: float  # m: γ L_y, how far the image above is shifted along x (Lees–Edwards shear γ)
@@ -128,8 +128,9 @@ def _advance(steps, state, model, settings, clock):
     t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
+    movers = MOVING and any_moves(m.walls)  # (MOVING: the build runs moving colliders; the shared one for any scene)
     for n in range(steps):
-        if awake_blobs == 0 and not MOVING:  # everything asleep: nothing moves, and only a mover could wake it
+        if awake_blobs == 0 and not movers:  # everything asleep: nothing moves, and only a mover could wake it
             s.steps_done[0] += 1
             continue
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
@@ -262,26 +263,32 @@ def _now():
     return now
 
 
-EVERY_COLLIDER_KIND = "BLOBSIM_EVERY_COLLIDER_KIND"  # environment: "1", one build for every mix of colliders
+SHARED_BUILD = "BLOBSIM_SHARED_BUILD"  # environment: "1", one build of the step for scenes of many kinds
+_SHARED_BUILD_OLD_NAME = "BLOBSIM_EVERY_COLLIDER_KIND"  # its name before 2026-11-26, when it widened colliders only
 
 
 def configuration(model: Model, params: Params) -> Configuration:
-    """What the scene uses: which build of the step runs it. With BLOBSIM_EVERY_COLLIDER_KIND=1 in the
-    environment, a scene with colliders runs the build for every collider kind (`every_collider_kind`)."""
+    """What the scene uses: which build of the step runs it. With BLOBSIM_SHARED_BUILD=1 in the
+    environment, the shared build instead (`shared_build`)."""
     kinds = {s.kind for s in model.statics}
     config = Configuration(method=METHODS.index(params.method), collides=model.collides, statics=bool(kinds),
                            planes="plane" in kinds, segments="segment" in kinds, circles="circle" in kinds,
                            polygons="polygon" in kinds, sleep=params.sleep, moving=model.moving, loaded=model.loaded,
                            periodic=params.box[0] > 0.0 and model.collides)
-    return every_collider_kind(config) if os.environ.get(EVERY_COLLIDER_KIND) == "1" else config
+    shared = "1" in (os.environ.get(SHARED_BUILD), os.environ.get(_SHARED_BUILD_OLD_NAME))
+    return shared_build(config) if shared else config
 
 
-def every_collider_kind(config: Configuration) -> Configuration:
-    """The build for every collider kind, for a scene with colliders. A kind the scene lacks runs its kernel
-    over no rows, so the bits are the scene's own build's; and one build serves scenes with any mix of
-    colliders, where each mix would compile a build of its own (each links and optimizes the whole step
-    again: 6-12 s on the 2-core machine): a test suite, a sweep over scenes with different colliders."""
-    return config._replace(planes=True, segments=True, circles=True, polygons=True) if config.statics else config
+def shared_build(config: Configuration) -> Configuration:
+    """The build that serves every scene of the same area method and box, whatever else it uses: every collider
+    kind, moving and loaded walls, blob contacts, sleeping. A stage a scene has nothing for runs over no rows
+    (no colliders of a kind, no moving or loaded wall, no blob pair with one blob), and sleeping is off at run
+    time (`settings`: nobody is ever still for time_to_sleep = ∞), so the bits are the scene's own build's
+    (tests/test_builds.py). Each configuration would otherwise compile a build of its own (each links and
+    optimizes the whole step again: 6-12 s on the 2-core machine): for a test suite, or a sweep over scenes of
+    different kinds."""
+    return config._replace(collides=True, statics=True, planes=True, segments=True, circles=True, polygons=True,
+                           sleep=True, moving=True, loaded=True)
 
 
 def settings(model: Model, params: Params) -> StepSettings:
@@ -293,7 +300,8 @@ def settings(model: Model, params: Params) -> StepSettings:
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
                         drag=params.drag,
                         up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
-                        sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep,
+                        sleep_speed=params.sleep_speed,
+                        time_to_sleep=params.time_to_sleep if params.sleep else math.inf,
                         box_x=float(params.box[0]), box_y=float(params.box[1]),
                         box_tilt=float(params.shear * params.box[1]), config=configuration(model, params))
 

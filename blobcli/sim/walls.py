@@ -71,6 +71,15 @@ def _apply(c, s, tx, ty, x, y):
 
 
 @kernel
+def any_moves(walls):
+    """Whether any collider moves (a path, a velocity or a load)."""
+    for k in range(walls.motion.shape[0]):
+        if walls.motion[k] != FIXED:
+            return True
+    return False
+
+
+@kernel
 def place_walls(t, h, walls, pose, rest, placed, pos, offsets, awake, still):
     """Move every collider that moves from its pose at t to its pose at t + h (module docstring): its rows
     and bounding box in `placed`, its motion over the substep in `delta`, its pose in `pose` (dx, dy, θ,
