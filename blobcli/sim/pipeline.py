@@ -51,7 +51,7 @@ from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
-from .walls import account_contacts, any_moves, finish_loaded_walls, place_walls, yield_loaded_walls
+from .walls import account_contacts, any_moves, finish_loaded_walls, place_walls, react_loaded_walls, yield_loaded_walls
 
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
@@ -215,6 +215,10 @@ def _advance(steps, state, model, settings, clock):
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
                             s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, LAP_RESTITUTION, t)
+            if LOADED:  # a loaded wall takes its share of the velocity stages' impulses too (momentum kept)
+                react_loaded_walls(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
+                                   s.contact_normal, s.contact_depth, m.walls, s.static_pose, s.touch, h)
+                t = _lap(clock, LAP_STATICS, t)
             if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
                 blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.material,
                                         s.c_edge, s.c_hit, s.c_normal, s.blob_contact_depth, h, s.center, box,

@@ -23,7 +23,8 @@ vertex moves σ c_i along n_i too (c_i = n_i · e), and momentum along e is kept
 the rest):
     M σ + Σ m_i (D_i + σ c_i) c_i = Σ m_i D_i c_i - Σ m_i D_i c_i  =>  σ = -Σ m_i D_i c_i / (M + Σ m_i c_i²),
 the inelastic two-body split of PBD (a light wall yields, a heavy one barely), never an overshoot. After
-the substep V = (s - s_start) / h. At rest the load and the blobs' pushes balance: the impulses the
+the substep V = (s - s_start) / h; the contacts' velocity stages then share their impulses with it the same
+way (`react_loaded_walls`). At rest the load and the blobs' pushes balance: the impulses the
 blobs give it over a step are F dt, which is what `account_contacts` records.
 
 Forces: the kernels record for each vertex the pushes Δx each collider gave it over the step (up to two
@@ -33,6 +34,8 @@ order (the same bits for any thread count).
 """
 
 import math
+
+import numpy as np
 
 from ..jit import inline_kernel, kernel
 
@@ -192,6 +195,80 @@ def yield_loaded_walls(pos, inv_mass, walls, pose, rest, placed, touch):
         if wall_of[i] >= 0:
             wall_of[i] = -1
             wall_push[0, i] = wall_push[1, i] = 0.0
+
+
+@kernel
+def react_loaded_walls(pos, prev, vel, inv_mass, offsets, awake, contact_normal, contact_depth, walls, pose, touch, h):
+    """The velocity-level impulses of the substep's static contacts (integrate.update_velocities' clamp and
+    kinetic friction, stop_impact_velocities, restitution) act on a loaded wall too, shared as its pushes are.
+
+    Those stages change blob b's momentum by J_b = Σ m v - Σ m (x - x_prev) / h (the velocities read from the
+    positions carry Σ m (x - x_prev) / h), as if every collider were fixed. The part s_b = D_b,k / D_b of it
+    (its static contacts' depth on wall k over all of them) is wall k's, along n̄_b (the depth-weighted normal
+    of its contacts on k), c_b = n̄_b · e. Left one-sided, a light wall that jiggles under its load has its
+    approaches stopped by the blobs and never feels it: the blobs got more than the load (1.44 N for a 1 N,
+    0.2 kg wall on 30 blobs of 1 kg; dev, 2026-11-26). Shared like the pushes (module docstring), the wall's
+    velocity changes by ΔV and each blob follows it by ΔV s_b c_b n̄_b, so that momentum along e is kept:
+        M ΔV + Σ s_b J_b · e + ΔV Σ m_b s_b c_b² = 0  =>  ΔV = -Σ s_b J_b · e / (M + Σ m_b s_b c_b²).
+    The blobs' impulse on the wall, -(s_b J_b + m_b ΔV s_b c_b n̄_b), is recorded at b's deepest vertex on it."""
+    static_of, static_push, _, _ = touch
+    B = offsets.shape[0] - 1
+    share = np.zeros(B)  # s_b
+    normal = np.zeros((B, 2))  # n̄_b
+    impulse = np.zeros((B, 2))  # s_b J_b
+    deepest = np.full(B, -1)
+    for k in range(walls.motion.shape[0]):
+        if walls.motion[k] != LOADED:
+            continue
+        ex, ey = walls.drive[k, 1], walls.drive[k, 2]
+        along = heavy = 0.0
+        for b in range(B):
+            share[b] = 0.0
+            if not awake[b]:
+                continue
+            o, e = offsets[b], offsets[b + 1]
+            total = on_k = nx = ny = most = 0.0
+            for i in range(o, e):
+                D = contact_depth[i]
+                total += D
+                if D > 0.0 and (static_of[0, i] == k or static_of[1, i] == k):
+                    on_k += D
+                    nx += D * contact_normal[0, i]
+                    ny += D * contact_normal[1, i]
+                    if D > most:
+                        most, deepest[b] = D, i
+            length = math.sqrt(nx * nx + ny * ny)
+            if on_k == 0.0 or length == 0.0:
+                continue
+            m = 1.0 / inv_mass[o]
+            jx = jy = 0.0
+            for i in range(o, e):
+                jx += m * (vel[0, i] - (pos[0, i] - prev[0, i]) / h)
+                jy += m * (vel[1, i] - (pos[1, i] - prev[1, i]) / h)
+            share[b] = on_k / total
+            normal[b, 0], normal[b, 1] = nx / length, ny / length
+            impulse[b, 0], impulse[b, 1] = share[b] * jx, share[b] * jy
+            c = normal[b, 0] * ex + normal[b, 1] * ey
+            along += impulse[b, 0] * ex + impulse[b, 1] * ey
+            heavy += m * (e - o) * share[b] * c * c
+        if along == 0.0:
+            continue
+        dV = -along / (walls.mass[k] + heavy)
+        pose[k, 4] += dV
+        for b in range(B):
+            if share[b] == 0.0:
+                continue
+            o, e = offsets[b], offsets[b + 1]
+            c = normal[b, 0] * ex + normal[b, 1] * ey
+            fx, fy = dV * share[b] * c * normal[b, 0], dV * share[b] * c * normal[b, 1]
+            for i in range(o, e):
+                vel[0, i] += fx
+                vel[1, i] += fy
+            i = deepest[b]
+            mb, mi = (e - o) / inv_mass[o], 1.0 / inv_mass[i]
+            # recorded as a push: account_contacts reads -m Σ Δx / h
+            account(i, k, (impulse[b, 0] + mb * fx) * h / mi, (impulse[b, 1] + mb * fy) * h / mi, static_of,
+                    static_push)
 
 
 @kernel
