@@ -51,7 +51,15 @@ from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
-from .walls import account_contacts, any_moves, finish_loaded_walls, place_walls, react_loaded_walls, yield_loaded_walls
+from .walls import (
+    account_contacts,
+    any_moves,
+    finish_loaded_walls,
+    place_walls,
+    react_loaded_walls,
+    record_contact_impulses,
+    yield_loaded_walls,
+)
 
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
           "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
@@ -215,7 +223,10 @@ def _advance(steps, state, model, settings, clock):
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
                             s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
                 t = _lap(clock, LAP_RESTITUTION, t)
-            if LOADED:  # a loaded wall takes its share of the velocity stages' impulses too (momentum kept)
+            if STATICS:  # the velocity stages' impulses into the colliders' records ...
+                record_contact_impulses(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
+                                        s.contact_depth, m.walls, s.touch, h)
+            if LOADED:  # ... and a loaded wall takes its share of them (momentum kept)
                 react_loaded_walls(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
                                    s.contact_normal, s.contact_depth, m.walls, s.static_pose, s.touch, h)
                 t = _lap(clock, LAP_STATICS, t)

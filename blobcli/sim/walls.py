@@ -35,9 +35,10 @@ order (the same bits for any thread count).
 
 import math
 
+import numba
 import numpy as np
 
-from ..jit import inline_kernel, kernel
+from ..jit import inline_kernel, kernel, stage_kernel
 
 FIXED, VELOCITY, PATH, LOADED = range(4)  # model.Walls.motion
 
@@ -195,6 +196,52 @@ def yield_loaded_walls(pos, inv_mass, walls, pose, rest, placed, touch):
         if wall_of[i] >= 0:
             wall_of[i] = -1
             wall_push[0, i] = wall_push[1, i] = 0.0
+
+
+@inline_kernel
+def _is_loaded(walls, k):
+    """Whether collider k is a loaded wall. (Not in a stage kernel's own code: there, LOADED is the name of the
+    configuration flag that jit.build binds, not this module's motion code.)"""
+    return walls.motion[k] == LOADED
+
+
+@stage_kernel
+def record_contact_impulses(pos, prev, vel, inv_mass, offsets, awake, contact_depth, walls, touch, h):
+    """Record the velocity-level impulses of the substep's static contacts as the colliders' (a loaded wall's
+    share is `react_loaded_walls`'). The velocity stages (integrate.update_velocities' clamp and kinetic
+    friction, stop_impact_velocities, restitution) change blob b's momentum by J_b = Σ m v - Σ m (x - x_prev) / h
+    (the velocities read from the positions carry Σ m (x - x_prev) / h); each of its contact vertices i takes
+    the part D_i / D_b of it (its push depth over the blob's), for the collider that pushed it. Without this
+    the record held the position pushes only: a blob dropped on a floor at e = 0 put 2-9 times its weight on
+    the floor's record for the next second while it lay still (its bounce, taken back by restitution, was
+    recorded and the taking back was not; dev, 2026-11-26)."""
+    static_of, static_push, _, _ = touch
+    for b in numba.prange(offsets.shape[0] - 1):
+        if not awake[b]:
+            continue
+        o, e = offsets[b], offsets[b + 1]
+        depth = 0.0
+        for i in range(o, e):
+            depth += contact_depth[i]
+        if depth == 0.0:
+            continue
+        m = 1.0 / inv_mass[o]
+        jx = jy = 0.0
+        for i in range(o, e):
+            jx += m * (vel[0, i] - (pos[0, i] - prev[0, i]) / h)
+            jy += m * (vel[1, i] - (pos[1, i] - prev[1, i]) / h)
+        for i in range(o, e):
+            D = contact_depth[i]
+            if D == 0.0:
+                continue
+            both = static_of[1, i] >= 0
+            for slot in range(2 if both else 1):
+                k = static_of[slot, i]
+                if k < 0 or _is_loaded(walls, k):
+                    continue
+                part = D / depth * (0.5 if both else 1.0) * h / m  # recorded as a push: -m Σ Δx / h
+                static_push[2 * slot, i] += part * jx
+                static_push[2 * slot + 1, i] += part * jy
 
 
 @kernel
