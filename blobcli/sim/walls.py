@@ -199,6 +199,17 @@ def yield_loaded_walls(pos, inv_mass, walls, pose, rest, placed, touch):
 
 
 @inline_kernel
+def _velocity_impulse(pos, prev, vel, m, o, e, h):
+    """J_b = Σ m v - Σ m (x - x_prev) / h over ring o..e (vertex mass m): what the substep's velocity stages
+    gave the blob (the velocities read from the positions carry Σ m (x - x_prev) / h)."""
+    jx = jy = 0.0
+    for i in range(o, e):
+        jx += m * (vel[0, i] - (pos[0, i] - prev[0, i]) / h)
+        jy += m * (vel[1, i] - (pos[1, i] - prev[1, i]) / h)
+    return jx, jy
+
+
+@inline_kernel
 def _is_loaded(walls, k):
     """Whether collider k is a loaded wall. (Not in a stage kernel's own code: there, LOADED is the name of the
     configuration flag that jit.build binds, not this module's motion code.)"""
@@ -209,8 +220,8 @@ def _is_loaded(walls, k):
 def record_contact_impulses(pos, prev, vel, inv_mass, offsets, awake, contact_depth, walls, touch, h):
     """Record the velocity-level impulses of the substep's static contacts as the colliders' (a loaded wall's
     share is `react_loaded_walls`'). The velocity stages (integrate.update_velocities' clamp and kinetic
-    friction, stop_impact_velocities, restitution) change blob b's momentum by J_b = Σ m v - Σ m (x - x_prev) / h
-    (the velocities read from the positions carry Σ m (x - x_prev) / h); each of its contact vertices i takes
+    friction, stop_impact_velocities, restitution) change blob b's momentum by J_b (`_velocity_impulse`); each
+    of its contact vertices i takes
     the part D_i / D_b of it (its push depth over the blob's), for the collider that pushed it. Without this
     the record held the position pushes only: a blob dropped on a floor at e = 0 put 2-9 times its weight on
     the floor's record for the next second while it lay still (its bounce, taken back by restitution, was
@@ -226,10 +237,7 @@ def record_contact_impulses(pos, prev, vel, inv_mass, offsets, awake, contact_de
         if depth == 0.0:
             continue
         m = 1.0 / inv_mass[o]
-        jx = jy = 0.0
-        for i in range(o, e):
-            jx += m * (vel[0, i] - (pos[0, i] - prev[0, i]) / h)
-            jy += m * (vel[1, i] - (pos[1, i] - prev[1, i]) / h)
+        jx, jy = _velocity_impulse(pos, prev, vel, m, o, e, h)
         for i in range(o, e):
             D = contact_depth[i]
             if D == 0.0:
@@ -249,13 +257,13 @@ def react_loaded_walls(pos, prev, vel, inv_mass, offsets, awake, contact_normal,
     """The velocity-level impulses of the substep's static contacts (integrate.update_velocities' clamp and
     kinetic friction, stop_impact_velocities, restitution) act on a loaded wall too, shared as its pushes are.
 
-    Those stages change blob b's momentum by J_b = Σ m v - Σ m (x - x_prev) / h (the velocities read from the
-    positions carry Σ m (x - x_prev) / h), as if every collider were fixed. The part s_b = D_b,k / D_b of it
-    (its static contacts' depth on wall k over all of them) is wall k's, along n̄_b (the depth-weighted normal
-    of its contacts on k), c_b = n̄_b · e. Left one-sided, a light wall that jiggles under its load has its
-    approaches stopped by the blobs and never feels it: the blobs got more than the load (1.44 N for a 1 N,
-    0.2 kg wall on 30 blobs of 1 kg; dev, 2026-11-26). Shared like the pushes (module docstring), the wall's
-    velocity changes by ΔV and each blob follows it by ΔV s_b c_b n̄_b, so that momentum along e is kept:
+    Those stages change blob b's momentum by J_b (`_velocity_impulse`), as if every collider were fixed. The
+    part s_b = D_b,k / D_b of it (its static contacts' depth on wall k over all of them) is wall k's, along n̄_b
+    (the depth-weighted normal of its contacts on k), c_b = n̄_b · e. Left one-sided, a light wall that jiggles
+    under its load has its approaches stopped by the blobs and never feels it: the blobs got more than the load
+    (1.44 N for a 1 N, 0.2 kg wall on 30 blobs of 1 kg; dev, 2026-11-26). Shared like the pushes (module
+    docstring), the wall's velocity changes by ΔV and each blob follows it by ΔV s_b c_b n̄_b, so that momentum
+    along e is kept:
         M ΔV + Σ s_b J_b · e + ΔV Σ m_b s_b c_b² = 0  =>  ΔV = -Σ s_b J_b · e / (M + Σ m_b s_b c_b²).
     The blobs' impulse on the wall, -(s_b J_b + m_b ΔV s_b c_b n̄_b), is recorded at b's deepest vertex on it."""
     static_of, static_push, _, _ = touch
@@ -288,10 +296,7 @@ def react_loaded_walls(pos, prev, vel, inv_mass, offsets, awake, contact_normal,
             if on_k == 0.0 or length == 0.0:
                 continue
             m = 1.0 / inv_mass[o]
-            jx = jy = 0.0
-            for i in range(o, e):
-                jx += m * (vel[0, i] - (pos[0, i] - prev[0, i]) / h)
-                jy += m * (vel[1, i] - (pos[1, i] - prev[1, i]) / h)
+            jx, jy = _velocity_impulse(pos, prev, vel, m, o, e, h)
             share[b] = on_k / total
             normal[b, 0], normal[b, 1] = nx / length, ny / length
             impulse[b, 0], impulse[b, 1] = share[b] * jx, share[b] * jy
