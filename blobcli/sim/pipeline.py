@@ -226,9 +226,9 @@ def _advance(steps, state, model, settings, clock):
             if STATICS:  # the velocity stages' impulses into the colliders' records ...
                 record_contact_impulses(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
                                         s.contact_depth, m.walls, s.touch, h)
-            if LOADED:  # ... and a loaded wall takes its share of them (momentum kept)
-                react_loaded_walls(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
-                                   s.contact_normal, s.contact_depth, m.walls, s.static_pose, s.touch, h)
+                if LOADED:  # ... and a loaded wall takes its share of them (momentum kept)
+                    react_loaded_walls(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
+                                       s.contact_normal, s.contact_depth, m.walls, s.static_pose, s.touch, h)
                 t = _lap(clock, LAP_STATICS, t)
             if COLLIDES and pairs.shape[0] > 0:  # blob contacts: no approach, Coulomb friction, at velocity level
                 blob_contact_velocities(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.material,

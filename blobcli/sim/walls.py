@@ -221,8 +221,8 @@ def record_contact_impulses(pos, prev, vel, inv_mass, offsets, awake, contact_de
     """Record the velocity-level impulses of the substep's static contacts as the colliders' (a loaded wall's
     share is `react_loaded_walls`'). The velocity stages (integrate.update_velocities' clamp and kinetic
     friction, stop_impact_velocities, restitution) change blob b's momentum by J_b (`_velocity_impulse`); each
-    of its contact vertices i takes
-    the part D_i / D_b of it (its push depth over the blob's), for the collider that pushed it. Without this
+    of its contact vertices i takes the part D_i / D_b of it (its push depth over the blob's), for the collider
+    that pushed it (half each for a vertex two colliders pushed this step). Without this
     the record held the position pushes only: a blob dropped on a floor at e = 0 put 2-9 times its weight on
     the floor's record for the next second while it lay still (its bounce, taken back by restitution, was
     recorded and the taking back was not; dev, 2026-11-26)."""
