@@ -130,8 +130,8 @@ friction = 0.0
 def test_the_floor_under_a_loaded_column_at_rest_records_the_load_and_the_weight():
     """Four blobs stacked on a fixed floor under a 1 N loaded wall, brought to rest by drag: over the last
     second the fixed floor records the load plus the blobs' weight (measured 0.99996 of it; 1.0003 before the
-    records held the velocity stages' impulses) and the wall its load (1.0003). (A fixed collider's record had been suspected of counting 16-38% too much under a loaded
-    column, issue "Packings"; at rest it does not.)"""
+    records held the velocity stages' impulses) and the wall its load (1.0003). (The 16-38% too much once
+    suspected of a fixed collider's record was the loaded wall's: see the light loaded wall below.)"""
     floor, wall = [], []
     model, _, params = run(COLUMN, each=lambda n, s: (floor.append(s.static_impulse[0, 1]),
                                                          wall.append(s.static_impulse[1, 1])))
@@ -232,8 +232,8 @@ def test_a_light_loaded_wall_on_a_packing_pushes_with_its_load_and_its_stress_is
             walls += np.sum((pos[1] - cy[blob_of]) * on_blobs * share / share.sum())
         gap = 0.65 + 0.64 + state.static_pose[1, 1]
         floor.append(-force[0])
-        love_weber.append((state.packing[0][:, 3].sum() / dt + walls) / (-1.0 * gap))
-    assert np.abs(np.array(state.velocity)).max() < 0.01  # at rest: the slowest vertex under 1 cm/s
+        love_weber.append(-(state.packing[0][:, 3].sum() / dt + walls) / gap)  # F = 1 N
+    assert np.abs(state.velocity).max() < 0.01  # at rest: the slowest vertex under 1 cm/s
     assert np.mean(floor) == pytest.approx(1.0, rel=LOADED_PACKING)
     assert np.mean(love_weber) == pytest.approx(1.0, rel=LOADED_PACKING)
 
