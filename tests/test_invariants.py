@@ -33,8 +33,10 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from blobcli import blob_measures, build, build_params, step
-from blobcli.geometry import depth_inside_polygon
+from blobcli.geometry import depth_inside_polygon, first_crossing
 from blobcli.sim.pipeline import advance
+
+FAIL_SAFE_AREA = 1e-3  # relative area error of a free blob after a step the self-contact fail-safe acted in
 
 
 def free_blob(vertices, pressure, compliance, clockwise, damping=1.0, gravity="[0.0, 0.0]"):
@@ -88,10 +90,16 @@ def test_free_blob_area_is_target_after_every_step(n, pressure, compliance, cloc
     sc = scene(text)
     model, state = build(sc)
     params = build_params(sc)
+    zoned = state.self_contact[-1]
     for _ in range(30):
+        before = int(zoned[0])
         step(state, model, params)
+        assert first_crossing(state.pos) is None
         area, _ = blob_measures(state, model)
-        assert abs(area[0] - model.target_area[0]) <= AREA_ROUNDOFF * abs(model.target_area[0])
+        # exact, but for a step in which the ring would have crossed itself (a squeezed blob crumpling at one
+        # iteration) and the fail-safe moved part of it rigidly (sim/self_contact.py)
+        tolerance = AREA_ROUNDOFF if zoned[0] == before else FAIL_SAFE_AREA
+        assert abs(area[0] - model.target_area[0]) <= tolerance * abs(model.target_area[0])
 
 
 def free_fall(substeps):

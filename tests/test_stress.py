@@ -103,3 +103,6 @@ def test_every_method_runs_every_stress_scene_to_a_verdict(tmp_path):
     # the exact method passes the scenes built for it (area kept, nothing tunnels)
     by = {(v.scene, v.method): v for v in verdicts}
     assert by[("crushed", "kot")].passed and by[("tall_stack", "kot")].passed
+    # ... and no ring of it crosses itself or turns inside out, in any scene (self-contact, sim/self_contact.py)
+    assert not any(reason.startswith(("self-intersecting", "inside out"))
+                   for v in by_method["kot"] for reason in v.failures), [v.failures for v in by_method["kot"]]

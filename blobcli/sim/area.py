@@ -63,36 +63,40 @@ def area_kot(pos, inv_mass, offsets, awake, target_area):
     for blob in numba.prange(offsets.shape[0] - 1):
         if not awake[blob]:
             continue
-        o, e = offsets[blob], offsets[blob + 1]
-        n = e - o
-        # Pass 1: a, b, c, carrying p_i from one edge to the next.
-        xl, yl = pos[0, e - 1], pos[1, e - 1]  # x_{i-1}
-        x1, y1 = pos[0, o + 1], pos[1, o + 1]
-        px = 0.5 * inv_mass[o] * (y1 - yl)
-        py = 0.5 * inv_mass[o] * (xl - x1)
-        a = b = c = 0.0
-        for k in range(n):
-            i = o + k
-            j = i + 1 if k + 1 < n else i + 1 - n  # o + (k + 1) % n, without dividing
-            jj = i + 2 if k + 2 < n else i + 2 - n
-            xi, yi = pos[0, i], pos[1, i]
-            xj, yj = pos[0, j], pos[1, j]
-            qx = 0.5 * inv_mass[j] * (pos[1, jj] - yi)  # p_{i+1}
-            qy = 0.5 * inv_mass[j] * (xi - pos[0, jj])
-            a += px * qy - py * qx
-            b += (xi * qy - yi * qx) + (px * yj - py * xj)
-            c += xi * yj - yi * xj
-            px, py = qx, qy
-        c -= 2.0 * target_area[blob]
-        disc = b * b - 4.0 * a * c
-        if disc < 0.0:
-            h = -b / (2.0 * a)
-        else:
-            q = -0.5 * (b + (disc ** 0.5 if b >= 0.0 else -(disc ** 0.5)))
-            h = c / q if q != 0.0 else 0.0
-        # Pass 2: x_i += h p_i = h w_i ∇_i A.
-        _gradient_step(pos, inv_mass, o, e, h)
+        project_area(pos, inv_mass, offsets[blob], offsets[blob + 1], target_area[blob])
 
+
+@inline_kernel
+def project_area(pos, inv_mass, o, e, target):
+    """Ring o..e moved along x_i += h w_i ∇_i A to the area `target` (see the module docstring)."""
+    n = e - o
+    # Pass 1: a, b, c, carrying p_i from one edge to the next.
+    xl, yl = pos[0, e - 1], pos[1, e - 1]  # x_{i-1}
+    x1, y1 = pos[0, o + 1], pos[1, o + 1]
+    px = 0.5 * inv_mass[o] * (y1 - yl)
+    py = 0.5 * inv_mass[o] * (xl - x1)
+    a = b = c = 0.0
+    for k in range(n):
+        i = o + k
+        j = i + 1 if k + 1 < n else i + 1 - n  # o + (k + 1) % n, without dividing
+        jj = i + 2 if k + 2 < n else i + 2 - n
+        xi, yi = pos[0, i], pos[1, i]
+        xj, yj = pos[0, j], pos[1, j]
+        qx = 0.5 * inv_mass[j] * (pos[1, jj] - yi)  # p_{i+1}
+        qy = 0.5 * inv_mass[j] * (xi - pos[0, jj])
+        a += px * qy - py * qx
+        b += (xi * qy - yi * qx) + (px * yj - py * xj)
+        c += xi * yj - yi * xj
+        px, py = qx, qy
+    c -= 2.0 * target
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        h = -b / (2.0 * a)
+    else:
+        q = -0.5 * (b + (disc ** 0.5 if b >= 0.0 else -(disc ** 0.5)))
+        h = c / q if q != 0.0 else 0.0
+    # Pass 2: x_i += h p_i = h w_i ∇_i A.
+    _gradient_step(pos, inv_mass, o, e, h)
 
 
 @kernel

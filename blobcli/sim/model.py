@@ -20,6 +20,7 @@ from ..scene.placement import random_centres, ring_at_origin
 from ..scene.schema import BlobDef, Scene, StaticDef, expanded_names
 from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
 from .integrate import NO_BOUNCE
+from .self_contact import self_contact_records
 from .sleep import begin_still
 from .walls import FIXED, LOADED, PATH, VELOCITY, WALL_POSE_COLUMNS, place_initial
 
@@ -228,6 +229,8 @@ class State(NamedTuple):
     #                 each blob's Σ (x - c) ⊗ J over its contact impulses J at points x, as xx, xy, yx, yy;
     #                 touching (PAIRS_PER_BLOB B, 2) int64: the pairs in contact at the step's end ...;
     #                 touching_count (1,) int64: ... how many); empty arrays in an open world
+    self_contact: tuple  # each ring's pairs of a vertex and an edge of its own this substep (sim/self_contact.py):
+    #                      (pairs (2, K N) int64, values (3, K N): side, gap (m), push (m); count (B,) int64)
 
     @property
     def pos(self) -> np.ndarray:
@@ -338,7 +341,8 @@ def build(scene: Scene) -> tuple[Model, State]:
                   static_pose=np.zeros((len(scene.statics), WALL_POSE_COLUMNS)),
                   static_impulse=np.zeros((len(scene.statics), 3)), placed=initial_placed(statics),
                   touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))),
-                  packing=packing_records(blobs if scene.settings.periodic is not None else 0))
+                  packing=packing_records(blobs if scene.settings.periodic is not None else 0),
+                  self_contact=self_contact_records(n, blobs))
     if model.moving:  # (a kernel: compiled only for scenes that need it, so others print their first line at once)
         place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
     begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)

@@ -49,6 +49,7 @@ from .integrate import (
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
+from .self_contact import find_self_contacts, keep_rings_simple, resolve_self_contacts
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
 from .walls import (
@@ -61,12 +62,12 @@ from .walls import (
     yield_loaded_walls,
 )
 
-STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve", "statics",
-          "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
+STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve",
+          "self contact", "statics", "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
 # the stage clock's slots, and none: numpy integers, which numba types as int64, so that _lap is compiled
 # once (a Python int is a literal to numba, and each slot compiled a _lap of its own)
 (LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE,
- LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) \
+ LAP_SELF_CONTACT, LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION, LAP_SLEEP) \
     = map(np.int64, range(len(STAGES)))
 NO_LAP = np.int64(-1)
 DONE, RUNAWAY_VERTEX, TOO_MANY_PAIRS = range(3)  # why _advance returned
@@ -136,6 +137,7 @@ def _advance(steps, state, model, settings, clock):
     t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
+    self_pairs, self_values, self_count, self_near, self_chunks, zoned = s.self_contact
     movers = MOVING and any_moves(m.walls)  # (MOVING: the build runs moving colliders; the shared one for any scene)
     for n in range(steps):
         if awake_blobs == 0 and not movers:  # everything asleep: nothing moves, and only a mover could wake it
@@ -163,6 +165,10 @@ def _advance(steps, state, model, settings, clock):
             s.perimeter_lam[:] = 0.0
             s.spring_lam[:] = 0.0
             t = _lap(clock, LAP_PREDICT, t)
+            # pairs of a vertex and an edge of its own ring that may meet this substep (sim/self_contact.py)
+            find_self_contacts(s.previous, s.position, m.offsets, s.awake, m.orient, m.rest_perimeter, self_pairs,
+                               self_values, self_count, self_near, self_chunks)
+            t = _lap(clock, LAP_SELF_CONTACT, t)
             if COLLIDES:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
                                                                  s.edges, s.blob_contact_depth, s.c_hit, box)
@@ -174,6 +180,12 @@ def _advance(steps, state, model, settings, clock):
                 solve_perimeter(s.position, m.inv_mass, m.offsets, s.awake, m.rest_length, m.rest_perimeter,
                                 m.compliance, s.lam, s.perimeter_lam, h)  # XPBD
                 t = _lap(clock, LAP_PERIMETER, t)
+                # a ring's vertices kept off its own edges, so that folds and pinches do not cross (before the
+                # area, which stays exact where nothing comes after it)
+                resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal, False,
+                                      m.offsets, s.awake, m.orient, m.material, self_pairs, self_values, self_count,
+                                      it % 2 == 1)
+                t = _lap(clock, LAP_SELF_CONTACT, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
                 if METHOD == KOT:
                     area_kot(s.position, m.inv_mass, m.offsets, s.awake, m.target_area)
@@ -209,9 +221,26 @@ def _advance(steps, state, model, settings, clock):
                         stop_impacts(s.position, m.offsets, s.awake, m.rest_perimeter, s.contact_normal,
                                      s.contact_depth)
                     t = _lap(clock, LAP_STATICS, t)
+                    # again after the statics, holding the vertices they pushed (the statics keep the last word)
+                    resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
+                                          True, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
+                                          self_count, it % 2 == 1)
+                    t = _lap(clock, LAP_SELF_CONTACT, t)
             if LOADED:
                 finish_loaded_walls(m.walls, s.static_pose, h)
                 t = _lap(clock, LAP_STATICS, t)
+            # where the constraints left two edges of a ring crossed, their ends move rigidly for the substep
+            if keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, m.inv_mass, m.offsets, s.awake,
+                                 m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near, self_chunks) > 0 \
+                    and STATICS:
+                # the zones moved from where the substep began: the colliders' last word again, and where
+                # that crossed a ring, its zones stay where they were (outside any collider that did not move)
+                collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
+                                s.contact_normal, s.contact_depth, s.contact_material, s.touch, h)
+                keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, m.inv_mass, m.offsets,
+                                  s.awake, m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near,
+                                  self_chunks)
+            t = _lap(clock, LAP_SELF_CONTACT, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)

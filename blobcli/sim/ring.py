@@ -22,6 +22,13 @@ def prev_in_ring(i, o, e):
 
 
 @inline_kernel
+def turn(pos, a, b, c):
+    """The sign of the turn a → b → c: +1 left (counter-clockwise), -1 right, 0 straight on."""
+    d = (pos[0, b] - pos[0, a]) * (pos[1, c] - pos[1, a]) - (pos[1, b] - pos[1, a]) * (pos[0, c] - pos[0, a])
+    return (d > 0.0) - (d < 0.0)
+
+
+@inline_kernel
 def vertex_normal(pos, orient, i, o, e):
     """Vertex i's outward normal (not unit): its neighbours' difference turned by the ring's winding."""
     before, after = prev_in_ring(i, o, e), next_in_ring(i, o, e)
