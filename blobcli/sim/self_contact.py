@@ -32,9 +32,9 @@ Pairs are found once per substep, after predict, so that a blob nowhere near fol
 nothing. The ring is cut into chunks of CHUNK edges. Two chunks that are not neighbours are tested
 vertex by edge only when their boxes, over the substep's start and its predicted end, come within the
 reach R = REACH L̄. A chunk with its neighbour (and a chunk alone) is skipped when all their edges point
-within 60° of one axis û, at both ends of the substep: then two points of the arc they make a length ℓ
-of ring apart are at least ℓ cos 60° apart ((x_b - x_a) · û = ∫ τ · û dℓ), and a vertex is at least a
-whole edge of ring from any edge not its own, so farther than R when L_min cos 60° > R, L_min their
+within 75° of one axis û, at both ends of the substep: then two points of the arc they make a length ℓ
+of ring apart are at least ℓ cos 75° apart ((x_b - x_a) · û = ∫ τ · û dℓ), and a vertex is at least a
+whole edge of ring from any edge not its own, so farther than R when L_min cos 75° > R, L_min their
 shortest edge. (Each chunk's edges lie in a cone about its chord; two cones of half-angles α_c, α_d
 whose axes are θ apart lie in one of half-angle (α_c + α_d + θ) / 2.) A round 32-gon's neighbouring
 chunks turn through 90° (8 edges of 11.25°): a blob that keeps its shape has no pair to test. A pair is
@@ -55,9 +55,9 @@ from .ring import next_in_ring, turn
 
 CHUNK = 4  # edges per chunk of a ring
 GAP = 0.05  # × the mean rest edge: how close a vertex may come to an edge of its own ring
-REACH = 0.3  # × the mean rest edge: pairs closer than this at the substep's start or end are kept
-CONE_COS = 0.5  # cos 60°
-CONE_COS2 = 0.25  # cos² 60°: an arc whose edges all point within 60° of one axis cannot touch itself
+REACH = 0.15  # × the mean rest edge: pairs closer than this at the substep's start or end are kept
+CONE = math.radians(75.0)  # β: an arc whose edges all point within β of one axis cannot touch itself
+CONE_COS, CONE_COS_2, CONE_SIN_2 = math.cos(CONE), math.cos(2.0 * CONE), math.sin(2.0 * CONE)
 MIN_LEVER = 0.25  # a pair acts only where the vertices free to move can move it: w > this × their largest w
 APART, NEAR, SETTLED = 0, 1, 2  # a ring's chunks this substep: all apart; some may meet; all apart, and still
 #                                at the substep's end (keep_rings_simple): the next substep need not measure its start
@@ -156,31 +156,28 @@ def _chunk_shapes(prev, pos, o, e, chunks, sweep):
 @inline_kernel
 def _chunks_may_meet(o, e, chunks, c, d, reach):
     """Whether a vertex of chunk c (first vertex) may come within reach of an edge of chunk d, or the
-    reverse (see above): neighbours, and a chunk alone, unless their edges point within 60° of one
-    axis and are longer than reach / cos 60° at both ends of the substep; others when their boxes come
+    reverse (see above): neighbours, and a chunk alone, unless their edges point within 75° of one
+    axis and are longer than reach / cos 75° at both ends of the substep; others when their boxes come
     within reach."""
     after, before = next_chunk(c, o, e) == d, next_chunk(d, o, e) == c
     if c == d or after or before:
         if after and before:  # two chunks: their arc is the whole ring
             return True
         for config in range(2):
-            if min(chunks[SHORTEST2 + config, c], chunks[SHORTEST2 + config, d]) * CONE_COS2 <= reach * reach:
+            if min(chunks[SHORTEST2 + config, c], chunks[SHORTEST2 + config, d]) * CONE_COS ** 2 <= reach * reach:
                 return True
             cos_c, sin_c = chunks[COS + config, c], chunks[SIN + config, c]
-            if c == d:
-                if cos_c < CONE_COS:
-                    return True
-                continue
             cos_d, sin_d = chunks[COS + config, d], chunks[SIN + config, d]
+            if min(cos_c, cos_d) < CONE_COS:  # a chunk's own edges spread wider than the cone
+                return True
+            if c == d:
+                continue
+            # (α_c + α_d + θ) / 2 <= β: with α_c, α_d <= β, S = α_c + α_d is in [0, 2β] and θ <= 2β - S,
+            # both in [0, π], exactly when cos θ >= cos(2β - S) = cos 2β cos S + sin 2β sin S
+            cos_s, sin_s = cos_c * cos_d - sin_c * sin_d, sin_c * cos_d + cos_c * sin_d
             cos_t = chunks[AXIS_X + config, c] * chunks[AXIS_X + config, d] \
                 + chunks[AXIS_Y + config, c] * chunks[AXIS_Y + config, d]
-            # (α_c + α_d + θ) / 2 <= 60°, in cosines: with each of α_c, α_d, θ at most 120°, the sum is
-            # at most 120° exactly when its cosine is at least cos 120° = -1/2
-            if min(cos_c, cos_d, cos_t) < -0.5:
-                return True
-            sin_t = math.sqrt(max(1.0 - cos_t * cos_t, 0.0))
-            cos_cd, sin_cd = cos_c * cos_d - sin_c * sin_d, sin_c * cos_d + cos_c * sin_d
-            if cos_cd < -0.5 or cos_cd * cos_t - sin_cd * sin_t < -0.5:
+            if cos_t < CONE_COS_2 * cos_s + CONE_SIN_2 * sin_s:
                 return True
         return False
     return not (chunks[BOX_X0, c] > chunks[BOX_X1, d] + reach or chunks[BOX_X0, d] > chunks[BOX_X1, c] + reach
