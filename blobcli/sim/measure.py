@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from ..jit import inline_kernel, kernel
+from ..jit import kernel
 from .model import Model, State
-from .ring import next_in_ring, twice_ring_area
+from .ring import next_in_ring, turn, twice_ring_area
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 
@@ -45,12 +45,6 @@ def first_runaway(pos, limit):
 SELF_CROSSING_MAX_VERTICES = 4096  # larger rings are not checked for self-crossing (O(n²) per ring)
 
 
-@inline_kernel
-def _orient(ax, ay, bx, by, cx, cy):
-    d = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-    return (d > 0.0) - (d < 0.0)
-
-
 @kernel
 def _shape_faults(pos, offsets, orient, faults):
     """faults[b] = 1 if blob b's signed area has lost its rest sign (inside out), 2 if its ring
@@ -69,10 +63,8 @@ def _shape_faults(pos, offsets, orient, faults):
                 j1 = next_in_ring(j, o, e)
                 if j1 == i:
                     continue
-                if (_orient(pos[0, i], pos[1, i], pos[0, i1], pos[1, i1], pos[0, j], pos[1, j])
-                        * _orient(pos[0, i], pos[1, i], pos[0, i1], pos[1, i1], pos[0, j1], pos[1, j1]) < 0
-                        and _orient(pos[0, j], pos[1, j], pos[0, j1], pos[1, j1], pos[0, i], pos[1, i])
-                        * _orient(pos[0, j], pos[1, j], pos[0, j1], pos[1, j1], pos[0, i1], pos[1, i1]) < 0):
+                if (turn(pos, i, i1, j) * turn(pos, i, i1, j1) < 0
+                        and turn(pos, j, j1, i) * turn(pos, j, j1, i1) < 0):
                     faults[b] = 2
                     break
             if faults[b]:

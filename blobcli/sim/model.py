@@ -229,8 +229,9 @@ class State(NamedTuple):
     #                 each blob's Σ (x - c) ⊗ J over its contact impulses J at points x, as xx, xy, yx, yy;
     #                 touching (PAIRS_PER_BLOB B, 2) int64: the pairs in contact at the step's end ...;
     #                 touching_count (1,) int64: ... how many); empty arrays in an open world
-    self_contact: tuple  # each ring's pairs of a vertex and an edge of its own this substep (sim/self_contact.py):
-    #                      (pairs (2, K N) int64, values (3, K N): side, gap (m), push (m); count (B,) int64)
+    self_contact: tuple  # each ring's pairs of a vertex and an edge of its own this substep, and what finds them
+    #                      (sim/self_contact.py, self_contact_records): scratch, but for `zoned`, a per-blob count
+    #                      of the substeps the fail-safe acted in since the run (or its resume) began
 
     @property
     def pos(self) -> np.ndarray:

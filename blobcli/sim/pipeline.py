@@ -230,16 +230,9 @@ def _advance(steps, state, model, settings, clock):
                 finish_loaded_walls(m.walls, s.static_pose, h)
                 t = _lap(clock, LAP_STATICS, t)
             # where the constraints left two edges of a ring crossed, their ends move rigidly for the substep
-            if keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, m.inv_mass, m.offsets, s.awake,
-                                 m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near, self_chunks) > 0 \
-                    and STATICS:
-                # the zones moved from where the substep began: the colliders' last word again, and where
-                # that crossed a ring, its zones stay where they were (outside any collider that did not move)
-                collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
-                                s.contact_normal, s.contact_depth, s.contact_material, s.touch, h)
-                keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, m.inv_mass, m.offsets,
-                                  s.awake, m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near,
-                                  self_chunks)
+            keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, s.contact_material, m.inv_mass,
+                              m.offsets, s.awake, m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near,
+                              self_chunks)
             t = _lap(clock, LAP_SELF_CONTACT, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,

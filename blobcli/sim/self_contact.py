@@ -434,13 +434,15 @@ def _crossings_into_zones(pos, o, e, chunks, zone):
 
 
 @inline_kernel
-def _move_zones_rigidly(pos, prev, held, o, e, zone, sums):
+def _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums):
     """Each zone of two or more vertices moves rigidly from where it was when the substep began: its
     centre as its vertices' mean moved, turned by the angle θ that best fits their motion (2D Procrustes,
     tan θ = Σ q × r / Σ q · r, q and r about the centre before and after, as integrate.update_velocities).
     The zone's momentum is kept, and its relative motion, the part that crossed the ring, is gone. A zone
-    with a vertex a collider pushed this substep (held > 0) stays where it was instead: moved, it would
-    go into that collider, whose push it undid (the colliders then run again: a moving one pushes it on)."""
+    with a vertex a fixed collider pushed this substep (held > 0) stays where it was when the substep began
+    instead (moved, it would go into that collider, whose push it undid); one that a moving collider pushed
+    (wall_velocity: contact_material's rows 4 and 5, the surface's velocity there) is left as it is: where
+    the substep began is inside the collider now, whose push keeps the last word."""
     n = e - o
     sums[:, :] = 0.0
     for k in range(n):
@@ -455,6 +457,8 @@ def _move_zones_rigidly(pos, prev, held, o, e, zone, sums):
         sums[root, 3] += prev[1, i]
         sums[root, 4] += 1.0
         sums[root, 7] += held[i]
+        if held[i] != 0.0 and (wall_velocity[4, i] != 0.0 or wall_velocity[5, i] != 0.0):
+            sums[root, 8] += 1.0
     for k in range(n):
         root, i = zone[k], o + k
         members = sums[root, 4]
@@ -468,6 +472,8 @@ def _move_zones_rigidly(pos, prev, held, o, e, zone, sums):
         root, i = zone[k], o + k
         members = sums[root, 4]
         if members < 2.0:
+            continue
+        if sums[root, 8] > 0.0:  # a moving collider holds it: its push has the last word
             continue
         if sums[root, 7] > 0.0:
             pos[0, i], pos[1, i] = prev[0, i], prev[1, i]
@@ -484,15 +490,18 @@ STILL_SIMPLE = 0.25  # × the reach: how far from its predicted place the iterat
 
 
 @stage_kernel
-def keep_rings_simple(pos, prev, vel, h, held, inv_mass, offsets, awake, rest_perimeter, target_area, exact_area,
-                      zoned, near, chunks):
+def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets, awake, rest_perimeter, target_area,
+                      exact_area, zoned, near, chunks):
     """The fail-safe after the substep's constraints (Bridson, Fedkiw & Anderson 2002's impact zones): where
     two edges of a ring now cross or touch, the ends of both move rigidly from where they were when the
     substep began, where they did not; zones that meet are joined, and after ZONE_ROUNDS rounds the whole
-    ring moves rigidly. A ring that began the substep simple ends it simple, with its momentum; what is lost
-    is the zones' relative motion (kinetic energy is never made). With `exact_area` (method kot), a ring the
-    zones moved and no collider touches is then projected onto its target area again, unless that crosses
-    it again: the area stays exact wherever it can. zoned[b] counts the substeps in which ring b needed this.
+    ring moves rigidly (zones a collider pushed: see _move_zones_rigidly). A ring that began the substep
+    simple ends it simple but where a moving collider holds it, with its momentum (but where a collider
+    holds it); what is lost is the zones' relative motion (kinetic energy is never made). With `exact_area`
+    (method kot), a ring the zones moved and no collider touches is then projected onto its target area
+    again, unless that crosses it again: the area stays exact wherever it can. zoned[b] counts the
+    substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
+    substep a little inside one (the next substep's collider stage puts it back).
 
     A ring whose chunks were all apart (find_self_contacts: near[b] = 0) and whose vertices the iterations
     moved less than STILL_SIMPLE × the reach from their predicted places x_prev + h v is not checked: its
@@ -522,12 +531,12 @@ def keep_rings_simple(pos, prev, vel, h, held, inv_mass, offsets, awake, rest_pe
         _crossings_into_zones(pos, o, e, chunks, zone)
         sums = np.empty((n, 8))
         for rounds in range(ZONE_ROUNDS):
-            _move_zones_rigidly(pos, prev, held, o, e, zone, sums)
+            _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums)
             if not _crossings_into_zones(pos, o, e, chunks, zone):
                 break
         else:  # still crossing: the whole ring, one zone
             zone[:] = 0
-            _move_zones_rigidly(pos, prev, held, o, e, zone, sums)
+            _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums)
         if not exact_area or np.any(held[o:e] != 0.0):
             continue
         kept = pos[:, o:e].copy()
