@@ -9,7 +9,7 @@ blob. So a vertex p is kept off every edge (x_0, x_1) of its own ring that is no
 With q = (1 - t) x_0 + t x_1 the point of the edge facing p (0 <= t <= 1) and n the edge's outward
 normal, s = (p - q) · n is p's signed distance from the edge: > 0 outside (two parts of the surface
 folding onto each other), < 0 inside (the blob pinched between them). p keeps to the side σ = sign(s)
-it was on when the substep began, at least a gap g from the edge:
+it was on (below), at least a gap g from the edge:
     C = σ (p - q) · n - g >= 0,   ∇_p C = σ n,   ∇_0 C = -(1 - t) σ n,   ∇_1 C = -t σ n,
     λ = -C / (w_p + (1 - t)² w_0 + t² w_1),   Δp = w_p λ σ n,   Δx_0 = -(1 - t) w_0 λ σ n,   Δx_1 = -t w_1 λ σ n:
 the point–edge constraint of blob–blob contacts (sim/collide.py), one-sided; Σ m Δx = 0, so momentum is
@@ -496,8 +496,8 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     two edges of a ring now cross or touch, the ends of both move rigidly from where they were when the
     substep began, where they did not; zones that meet are joined, and after ZONE_ROUNDS rounds the whole
     ring moves rigidly (zones a collider pushed: see _move_zones_rigidly). A ring that began the substep
-    simple ends it simple but where a moving collider holds it, with its momentum (but where a collider
-    holds it); what is lost is the zones' relative motion (kinetic energy is never made). With `exact_area`
+    simple ends it simple (unless a moving collider holds the crossing), with its momentum (unless a
+    collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made). With `exact_area`
     (method kot), a ring the zones moved and no collider touches is then projected onto its target area
     again, unless that crosses it again: the area stays exact wherever it can. zoned[b] counts the
     substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
