@@ -497,9 +497,9 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     substep began, where they did not; zones that meet are joined, and after ZONE_ROUNDS rounds the whole
     ring moves rigidly (zones a collider pushed: see _move_zones_rigidly). A ring that began the substep
     simple ends it simple (unless a moving collider holds the crossing), with its momentum (unless a
-    collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made). With `exact_area`
-    (method kot), a ring the zones moved and no collider touches is then projected onto its target area
-    again, unless that crosses it again: the area stays exact wherever it can. zoned[b] counts the
+    collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made).
+    With `exact_area` (method kot), a ring the zones moved and no collider touches is then projected onto
+    its target area again, unless that crosses it again: the area stays exact wherever it can. zoned[b] counts the
     substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
     substep a little inside one (the next substep's collider stage puts it back).
 
