@@ -444,7 +444,9 @@ def _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums):
     (wall_velocity: contact_material's rows 4 and 5, the surface's velocity there) is left as it is: where
     the substep began is inside the collider now, whose push keeps the last word."""
     n = e - o
-    sums[:, :] = 0.0
+    for k in range(n):
+        for column in range(sums.shape[1]):
+            sums[k, column] = 0.0
     for k in range(n):
         root = k
         while zone[root] != root:
@@ -483,6 +485,14 @@ def _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums):
         qx, qy = prev[0, i] - sums[root, 2] / members, prev[1, i] - sums[root, 3] / members
         pos[0, i] = sums[root, 0] / members + cos * qx - sin * qy
         pos[1, i] = sums[root, 1] / members + sin * qx + cos * qy
+
+
+@inline_kernel
+def _any_held(held, o, e):
+    for i in range(o, e):
+        if held[i] != 0.0:
+            return True
+    return False
 
 
 STILL_SIMPLE = 0.25  # × the reach: how far from its predicted place the iterations may move a vertex of a ring
@@ -529,18 +539,22 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
         rings += 1
         zone = np.arange(n)
         _crossings_into_zones(pos, o, e, chunks, zone)
-        sums = np.empty((n, 8))
+        sums = np.empty((n, 9))
         for rounds in range(ZONE_ROUNDS):
             _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums)
             if not _crossings_into_zones(pos, o, e, chunks, zone):
                 break
         else:  # still crossing: the whole ring, one zone
-            zone[:] = 0
+            for k in range(n):
+                zone[k] = 0
             _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums)
-        if not exact_area or np.any(held[o:e] != 0.0):
+        if not exact_area or _any_held(held, o, e):
             continue
-        kept = pos[:, o:e].copy()
+        kept = np.empty((2, n))
+        for k in range(n):
+            kept[0, k], kept[1, k] = pos[0, o + k], pos[1, o + k]
         project_area(pos, inv_mass, o, e, target_area[b])
         if _crossings_into_zones(pos, o, e, chunks, no_zone):
-            pos[:, o:e] = kept
+            for k in range(n):
+                pos[0, o + k], pos[1, o + k] = kept[0, k], kept[1, k]
     return rings
