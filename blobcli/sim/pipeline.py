@@ -166,8 +166,8 @@ def _advance(steps, state, model, settings, clock):
             s.spring_lam[:] = 0.0
             t = _lap(clock, LAP_PREDICT, t)
             # pairs of a vertex and an edge of its own ring that may meet this substep (sim/self_contact.py)
-            find_self_contacts(s.previous, s.position, m.offsets, s.awake, m.orient, m.rest_perimeter, self_pairs,
-                               self_values, self_count, self_near, self_chunks)
+            self_found = find_self_contacts(s.previous, s.position, m.offsets, s.awake, m.orient, m.rest_perimeter,
+                                            self_pairs, self_values, self_count, self_near, self_chunks)
             t = _lap(clock, LAP_SELF_CONTACT, t)
             if COLLIDES:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,
@@ -182,10 +182,11 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, LAP_PERIMETER, t)
                 # a ring's vertices kept off its own edges, so that folds and pinches do not cross (before the
                 # area, which stays exact where nothing comes after it)
-                resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal, False,
-                                      m.offsets, s.awake, m.orient, m.material, self_pairs, self_values, self_count,
-                                      it % 2 == 1)
-                t = _lap(clock, LAP_SELF_CONTACT, t)
+                if self_found > 0:
+                    resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
+                                          False, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
+                                          self_count, it % 2 == 1)
+                    t = _lap(clock, LAP_SELF_CONTACT, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
                 if METHOD == KOT:
                     area_kot(s.position, m.inv_mass, m.offsets, s.awake, m.target_area)
@@ -222,10 +223,11 @@ def _advance(steps, state, model, settings, clock):
                                      s.contact_depth)
                     t = _lap(clock, LAP_STATICS, t)
                     # again after the statics, holding the vertices they pushed (the statics keep the last word)
-                    resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
-                                          True, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
-                                          self_count, it % 2 == 1)
-                    t = _lap(clock, LAP_SELF_CONTACT, t)
+                    if self_found > 0:
+                        resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
+                                              True, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
+                                              self_count, it % 2 == 1)
+                        t = _lap(clock, LAP_SELF_CONTACT, t)
             if LOADED:
                 finish_loaded_walls(m.walls, s.static_pose, h)
                 t = _lap(clock, LAP_STATICS, t)

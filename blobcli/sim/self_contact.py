@@ -59,8 +59,7 @@ REACH = 0.15  # × the mean rest edge: pairs closer than this at the substep's s
 CONE = math.radians(75.0)  # β: an arc whose edges all point within β of one axis cannot touch itself
 CONE_COS, CONE_COS_2, CONE_SIN_2 = math.cos(CONE), math.cos(2.0 * CONE), math.sin(2.0 * CONE)
 MIN_LEVER = 0.25  # a pair acts only where the vertices free to move can move it: w > this × their largest w
-APART, NEAR, SETTLED = 0, 1, 2  # a ring's chunks this substep: all apart; some may meet; all apart, and still
-#                                at the substep's end (keep_rings_simple): the next substep need not measure its start
+APART, NEAR = 0, 1  # a ring's chunks this substep: all apart; some may meet
 UNDECIDED = 0.0  # the side of a pair whose vertex has not yet faced its edge this substep
 PER_VERTEX = 4  # pairs kept per vertex of a ring (the rest are dropped: a vertex faces two edges of a fold)
 
@@ -70,7 +69,7 @@ def self_contact_records(vertices: int, blobs: int) -> tuple:
     each pair's vertex and edge (its first vertex); values (4, PER_VERTEX N): its side σ (±1, or
     UNDECIDED), its gap g (m), the depth D it pushed out this substep (m) and the deepest it may act at
     (m); count (B,) int64: how many pairs each blob has, from slot PER_VERTEX × its first vertex on;
-    near (B,) uint8: APART, NEAR or SETTLED (below); chunks (CHUNK_ROWS, N):
+    near (B,) uint8: APART or NEAR (below); chunks (CHUNK_ROWS, N):
     the chunk table (below); zoned (B,) int64: in how many substeps since the run began the fail-safe
     (keep_rings_simple) moved part of each ring rigidly)."""
     return (np.zeros((2, PER_VERTEX * vertices), np.int64), np.zeros((4, PER_VERTEX * vertices)),
@@ -111,21 +110,23 @@ def _crosses(prev, pos, p, j, j1, s0, s1):
 
 # Rows of the chunk table (State.self_contact's `chunks`, (CHUNK_ROWS, N), chunk c of ring o..e in column
 # o + c CHUNK): its box over both configurations, and for each configuration the cone its edges point in
-# (axis a, half-angle α as cos α and sin α) and its shortest edge, squared.
-BOX_X0, BOX_Y0, BOX_X1, BOX_Y1, AXIS_X, AXIS_Y, COS, SIN, SHORTEST2, CHUNK_ROWS = 0, 1, 2, 3, 4, 6, 8, 10, 12, 14
+# (axis a, half-angle α as cos α and sin α) and its shortest edge, squared. The ring's skin (_in_skin): in
+# each vertex's column, where it was about the ring's centre when the ring was last measured apart, and
+# in the ring's first column, how far apart its parts were then (G; 0: no skin).
+BOX_X0, BOX_Y0, BOX_X1, BOX_Y1, AXIS_X, AXIS_Y, COS, SIN, SHORTEST2, REF_X, REF_Y, SKIN, CHUNK_ROWS = \
+    0, 1, 2, 3, 4, 6, 8, 10, 12, 14, 15, 16, 17
 
 
 @inline_kernel
-def _chunk_shapes(prev, pos, o, e, chunks, sweep):
-    """Each chunk's box and, at the substep's start (prev) and end (pos), its cone (about its chord u)
-    and shortest edge. With sweep >= 0, the start is known to be straight already (SETTLED): only the end
-    is measured, and its box is widened by sweep, the farthest a vertex moved from the start."""
+def _chunk_shapes(prev, pos, o, e, chunks):
+    """Each chunk's box over the substep's start (prev) and end (pos) and, at each, its cone (about its
+    chord u) and shortest edge."""
     for first in range(o, e, CHUNK):
         last = min(first + CHUNK, e)
         end = last if last < e else o  # the last edge's end
         x0 = y0 = math.inf
         x1 = y1 = -math.inf
-        for config in range(0 if sweep < 0.0 else 1, 2):
+        for config in range(2):
             x = prev if config == 0 else pos
             ux, uy = x[0, end] - x[0, first], x[1, end] - x[1, first]
             u2 = ux * ux + uy * uy
@@ -146,30 +147,29 @@ def _chunk_shapes(prev, pos, o, e, chunks, sweep):
             chunks[AXIS_X + config, first], chunks[AXIS_Y + config, first] = (ux / u, uy / u) if u > 0.0 else (1.0, 0.0)
             chunks[COS + config, first], chunks[SIN + config, first] = cos, math.sqrt(max(1.0 - cos * cos, 0.0))
             chunks[SHORTEST2 + config, first] = shortest2
-        if sweep >= 0.0:  # the start as the end
-            for row in (AXIS_X, AXIS_Y, COS, SIN, SHORTEST2):
-                chunks[row, first] = chunks[row + 1, first]
-            x0, y0, x1, y1 = x0 - sweep, y0 - sweep, x1 + sweep, y1 + sweep
         chunks[BOX_X0, first], chunks[BOX_Y0, first], chunks[BOX_X1, first], chunks[BOX_Y1, first] = x0, y0, x1, y1
 
 
 @inline_kernel
-def _chunks_may_meet(o, e, chunks, c, d, reach):
-    """Whether a vertex of chunk c (first vertex) may come within reach of an edge of chunk d, or the
-    reverse (see above): neighbours, and a chunk alone, unless their edges point within 75° of one
-    axis and are longer than reach / cos 75° at both ends of the substep; others when their boxes come
-    within reach."""
+def _chunks_apart_by(o, e, chunks, c, d, reach):
+    """How far apart, at least, a vertex of chunk c (its first vertex) and an edge of chunk d not its own,
+    or the reverse, are at both ends of the substep (see above); 0 where they may come within reach:
+    neighbours, and a chunk alone, unless their edges point within 75° of one axis and are longer than
+    reach / cos 75° (then L_min cos 75°); others unless their boxes are farther apart than reach (then
+    that gap)."""
     after, before = next_chunk(c, o, e) == d, next_chunk(d, o, e) == c
     if c == d or after or before:
         if after and before:  # two chunks: their arc is the whole ring
-            return True
+            return 0.0
+        apart = math.inf
         for config in range(2):
-            if min(chunks[SHORTEST2 + config, c], chunks[SHORTEST2 + config, d]) * CONE_COS ** 2 <= reach * reach:
-                return True
+            apart = min(apart, math.sqrt(min(chunks[SHORTEST2 + config, c], chunks[SHORTEST2 + config, d])) * CONE_COS)
+            if apart <= reach:
+                return 0.0
             cos_c, sin_c = chunks[COS + config, c], chunks[SIN + config, c]
             cos_d, sin_d = chunks[COS + config, d], chunks[SIN + config, d]
             if min(cos_c, cos_d) < CONE_COS:  # a chunk's own edges spread wider than the cone
-                return True
+                return 0.0
             if c == d:
                 continue
             # (α_c + α_d + θ) / 2 <= β: with α_c, α_d <= β, S = α_c + α_d is in [0, 2β] and θ <= 2β - S,
@@ -178,10 +178,11 @@ def _chunks_may_meet(o, e, chunks, c, d, reach):
             cos_t = chunks[AXIS_X + config, c] * chunks[AXIS_X + config, d] \
                 + chunks[AXIS_Y + config, c] * chunks[AXIS_Y + config, d]
             if cos_t < CONE_COS_2 * cos_s + CONE_SIN_2 * sin_s:
-                return True
-        return False
-    return not (chunks[BOX_X0, c] > chunks[BOX_X1, d] + reach or chunks[BOX_X0, d] > chunks[BOX_X1, c] + reach
-                or chunks[BOX_Y0, c] > chunks[BOX_Y1, d] + reach or chunks[BOX_Y0, d] > chunks[BOX_Y1, c] + reach)
+                return 0.0
+        return apart
+    gap = max(chunks[BOX_X0, c] - chunks[BOX_X1, d], chunks[BOX_X0, d] - chunks[BOX_X1, c],
+              chunks[BOX_Y0, c] - chunks[BOX_Y1, d], chunks[BOX_Y0, d] - chunks[BOX_Y1, c])
+    return gap if gap > reach else 0.0
 
 
 @inline_kernel
@@ -224,31 +225,90 @@ def _keep_pairs(prev, pos, orient, o, e, vertices_from, vertices_to, edges_from,
             values[3, slot0 + k] = reach + abs(s1 - s0)
 
 
+@inline_kernel
+def _in_skin(prev, pos, o, e, chunks, reach):
+    """Whether ring o..e is still inside the skin set when it was last measured apart: then no vertex can
+    come within reach of an edge not its own this substep, and it need not be measured again. With y_i
+    the ring then about its centre (rows REF_X, REF_Y) and G a lower bound on how far apart its parts were
+    (SKIN), each end of the substep is fitted a rigid motion x_i ≈ c + Q y_i (2D Procrustes, as
+    _move_zones_rigidly) and d is the farthest any vertex is from its fit. Every point between the two
+    ends is x_i(τ) = c_τ + ((1 - τ) Q_0 + τ Q_1) y_i + (at most d), and (1 - τ) Q_0 + τ Q_1 is a rotation
+    scaled by s >= cos(Δθ / 2), Δθ the angle between Q_0 and Q_1: every vertex-to-edge distance is at least
+    s G - 2 d all through the substep, and the ring needs no pair while that exceeds the reach (with 1% to
+    spare for rounding)."""
+    apart = chunks[SKIN, o]
+    if apart == 0.0:
+        return False
+    n = e - o
+    c0x = c0y = c1x = c1y = 0.0
+    for i in range(o, e):
+        c0x += prev[0, i]
+        c0y += prev[1, i]
+        c1x += pos[0, i]
+        c1y += pos[1, i]
+    c0x, c0y, c1x, c1y = c0x / n, c0y / n, c1x / n, c1y / n
+    cross0 = dot0 = cross1 = dot1 = 0.0
+    for i in range(o, e):
+        yx, yy = chunks[REF_X, i], chunks[REF_Y, i]
+        cross0 += yx * (prev[1, i] - c0y) - yy * (prev[0, i] - c0x)
+        dot0 += yx * (prev[0, i] - c0x) + yy * (prev[1, i] - c0y)
+        cross1 += yx * (pos[1, i] - c1y) - yy * (pos[0, i] - c1x)
+        dot1 += yx * (pos[0, i] - c1x) + yy * (pos[1, i] - c1y)
+    norm0, norm1 = math.hypot(cross0, dot0), math.hypot(cross1, dot1)
+    if norm0 == 0.0 or norm1 == 0.0:
+        return False
+    cos0, sin0, cos1, sin1 = dot0 / norm0, cross0 / norm0, dot1 / norm1, cross1 / norm1
+    scale = math.sqrt(max(0.5 * (1.0 + cos0 * cos1 + sin0 * sin1), 0.0))  # cos(Δθ / 2)
+    far2 = 0.0
+    for i in range(o, e):
+        yx, yy = chunks[REF_X, i], chunks[REF_Y, i]
+        far2 = max(far2, (prev[0, i] - c0x - cos0 * yx + sin0 * yy) ** 2
+                   + (prev[1, i] - c0y - sin0 * yx - cos0 * yy) ** 2,
+                   (pos[0, i] - c1x - cos1 * yx + sin1 * yy) ** 2 + (pos[1, i] - c1y - sin1 * yx - cos1 * yy) ** 2)
+    return 0.99 * scale * apart - 2.0 * math.sqrt(far2) > reach
+
+
+@inline_kernel
+def _set_skin(pos, o, e, chunks, apart):
+    """Ring o..e measured at pos with its parts at least `apart` from each other (0: some may meet): the
+    skin _in_skin checks it against from now on."""
+    chunks[SKIN, o] = apart
+    if apart == 0.0:
+        return
+    cx = cy = 0.0
+    for i in range(o, e):
+        cx += pos[0, i]
+        cy += pos[1, i]
+    cx, cy = cx / (e - o), cy / (e - o)
+    for i in range(o, e):
+        chunks[REF_X, i], chunks[REF_Y, i] = pos[0, i] - cx, pos[1, i] - cy
+
+
 @stage_kernel
 def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs, values, count, near, chunks):
     """Each awake ring's self-contact pairs for this substep (see above); prev: positions at its start,
     pos: predicted. near[b]: NEAR where two chunks of ring b may meet (else APART: keep_rings_simple may
-    skip it); SETTLED on entry: the ring's start need not be measured."""
+    skip it). A ring still in the skin of its last measurement is not measured. Returns the number of
+    pairs found (none: the resolve stage has nothing to do this substep)."""
+    found = 0
     for b in numba.prange(offsets.shape[0] - 1):
         count[b] = 0
-        settled = near[b] == SETTLED
         near[b] = APART
         if not awake[b]:
             continue
         o, e = offsets[b], offsets[b + 1]
         mean_edge = rest_perimeter[b] / (e - o)
         reach, gap = REACH * mean_edge, GAP * mean_edge
-        sweep = -1.0
-        if settled:  # its start was checked at the last substep's end: only the motion since is needed
-            sweep = 0.0
-            for i in range(o, e):
-                sweep = max(sweep, (pos[0, i] - prev[0, i]) ** 2 + (pos[1, i] - prev[1, i]) ** 2)
-            sweep = math.sqrt(sweep)
-        _chunk_shapes(prev, pos, o, e, chunks, sweep)
+        if _in_skin(prev, pos, o, e, chunks, reach):
+            continue
+        _chunk_shapes(prev, pos, o, e, chunks)
         slot0 = PER_VERTEX * o
+        apart = math.inf
         for c in range(o, e, CHUNK):
             for d in range(c, e, CHUNK):
-                if not _chunks_may_meet(o, e, chunks, c, d, reach):
+                apart_by = _chunks_apart_by(o, e, chunks, c, d, reach)
+                if apart_by > 0.0:
+                    apart = min(apart, apart_by)
                     continue
                 near[b] = NEAR
                 c_to, d_to = min(c + CHUNK, e), min(d + CHUNK, e)
@@ -256,6 +316,9 @@ def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs,
                 if d != c:
                     _keep_pairs(prev, pos, orient[b], o, e, d, d_to, c, c_to, reach, gap, pairs, values, slot0, count,
                                 b)
+        _set_skin(pos, o, e, chunks, apart if near[b] == APART else 0.0)
+        found += count[b]
+    return found
 
 
 @inline_kernel
@@ -412,11 +475,11 @@ def _join(zone, a, b):
 def _crossings_into_zones(pos, o, e, chunks, zone):
     """Join the zones of the ends of every two edges of ring o..e that cross or touch, and say whether any
     do (with an empty `zone`, only say). Chunks as find_self_contacts's, at pos, with no reach."""
-    _chunk_shapes(pos, pos, o, e, chunks, -1.0)
+    _chunk_shapes(pos, pos, o, e, chunks)
     crossed = False
     for c in range(o, e, CHUNK):
         for d in range(c, e, CHUNK):
-            if not _chunks_may_meet(o, e, chunks, c, d, 0.0):
+            if _chunks_apart_by(o, e, chunks, c, d, 0.0) > 0.0:
                 continue
             for a in range(c, min(c + CHUNK, e)):
                 a1 = next_in_ring(a, o, e)
@@ -531,7 +594,6 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
                 moved = max(moved, (pos[0, i] - prev[0, i] - h * vel[0, i]) ** 2
                             + (pos[1, i] - prev[1, i] - h * vel[1, i]) ** 2)
             if moved < bound:
-                near[b] = SETTLED
                 continue
         if not _crossings_into_zones(pos, o, e, chunks, no_zone):
             continue
