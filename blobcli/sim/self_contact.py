@@ -290,7 +290,6 @@ def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs,
     pos: predicted. near[b]: NEAR where two chunks of ring b may meet (else APART: keep_rings_simple may
     skip it). A ring still in the skin of its last measurement is not measured. Returns the number of
     pairs found (none: the resolve stage has nothing to do this substep)."""
-    found = 0
     for b in numba.prange(offsets.shape[0] - 1):
         count[b] = 0
         near[b] = APART
@@ -317,8 +316,7 @@ def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs,
                     _keep_pairs(prev, pos, orient[b], o, e, d, d_to, c, c_to, reach, gap, pairs, values, slot0, count,
                                 b)
         _set_skin(pos, o, e, chunks, apart if near[b] == APART else 0.0)
-        found += count[b]
-    return found
+    return count.sum()  # (not a reduction in the prange loop: its cached parallel build crashed when loaded)
 
 
 @inline_kernel
