@@ -138,6 +138,9 @@ def _advance(steps, state, model, settings, clock):
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
     box = (c.box_x, c.box_y, c.box_tilt)  # the periodic box; (0, 0, 0): an open world
     self_pairs, self_values, self_count, self_near, self_chunks, zoned = s.self_contact
+    # False and True as values known only when run: numba compiles a stage once per literal argument, and
+    # these let one build of the self-contact resolve serve both its calls
+    free, hold = blob_count < 0, blob_count >= 0
     movers = MOVING and any_moves(m.walls)  # (MOVING: the build runs moving colliders; the shared one for any scene)
     for n in range(steps):
         if awake_blobs == 0 and not movers:  # everything asleep: nothing moves, and only a mover could wake it
@@ -184,7 +187,7 @@ def _advance(steps, state, model, settings, clock):
                 # area, which stays exact where nothing comes after it)
                 if self_found > 0:
                     resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
-                                          False, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
+                                          free, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
                                           self_count, it % 2 == 1)
                     t = _lap(clock, LAP_SELF_CONTACT, t)
                 # the scene's area method (area.py); kot: exact, a h² + b h + c = 0
@@ -225,7 +228,7 @@ def _advance(steps, state, model, settings, clock):
                     # again after the statics, holding the vertices they pushed (the statics keep the last word)
                     if self_found > 0:
                         resolve_self_contacts(s.position, s.previous, m.inv_mass, s.contact_depth, s.contact_normal,
-                                              True, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
+                                              hold, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
                                               self_count, it % 2 == 1)
                         t = _lap(clock, LAP_SELF_CONTACT, t)
             if LOADED:
