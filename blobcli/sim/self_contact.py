@@ -316,7 +316,11 @@ def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs,
                     _keep_pairs(prev, pos, orient[b], o, e, d, d_to, c, c_to, reach, gap, pairs, values, slot0, count,
                                 b)
         _set_skin(pos, o, e, chunks, apart if near[b] == APART else 0.0)
-    return count.sum()  # (not a reduction in the prange loop: its cached parallel build crashed when loaded)
+    found = 0  # (a serial loop: a reduction in the prange loop, or count.sum(), which the parallel build runs as
+    #            one, made a step whose build was loaded from numba's cache crash: numba issue #8578)
+    for b in range(count.shape[0]):
+        found += count[b]
+    return found
 
 
 @inline_kernel
@@ -579,7 +583,7 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     parts were farther apart than the reach, and came closer by less than half of it. Returns the number
     of rings the fail-safe moved."""
     rings = 0
-    no_zone = np.zeros(0, np.int64)
+    no_zone = np.empty(0, np.int64)
     for b in numba.prange(offsets.shape[0] - 1):
         if not awake[b]:
             continue
