@@ -45,12 +45,14 @@ def stage_kernel(fn):
     (`if COLLIDES:` with COLLIDES false), so a build compiles only the stages its scene runs.
 
     Serial and parallel builds give the same bits: a prange loop's iterations write only their own
-    slots. A stage with prange loops has no other work the parallel build would run in parallel: no
-    reduction across a prange loop's iterations, no array expression or numpy call such as a.sum() or
-    np.zeros (numba issue #8578: a step whose build links such a stage crashed when loaded from the
-    disk cache, every time, though it ran when just compiled). Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step
-    3× slower, while at 1,000 blobs the parallel builds are far faster, on one thread too (the
-    perimeter sweep: 16.7 ns per edge serial, 7.1 parallel on one thread, 3.7 on two).
+    slots, and none sums across them: a stage that returned such a sum (a reduction in its prange loop,
+    or a.sum(), which its parallel build runs as one) made the step's build crash whenever it was loaded
+    from the disk cache, though it ran when just compiled (dev, 2026-11-26; numba issue #8578 has the
+    same symptom for nested parallel functions). Such sums are taken by a serial loop after the prange.
+
+    Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step 3× slower,
+    while at 1,000 blobs the parallel builds are far faster, on one thread too (the perimeter sweep:
+    16.7 ns per edge serial, 7.1 parallel on one thread, 3.7 on two).
     """
     serial = kernel(fn)
     _STAGES[id(serial)] = (serial, fn)

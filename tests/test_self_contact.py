@@ -40,16 +40,16 @@ def test_the_fail_safe_moves_a_crossed_part_rigidly_and_keeps_the_momentum():
     zoned, near, chunks = np.zeros(1, np.int64), np.ones(1, np.uint8), np.zeros((CHUNK_ROWS, n))
 
     def fail_safe(x):
-        return keep_rings_simple(x, prev, still, 1.0, held, np.zeros((6, n)), inv_mass, offsets, awake, perimeter,
+        keep_rings_simple(x, prev, still, 1.0, held, np.zeros((6, n)), inv_mass, offsets, awake, perimeter,
                                  target, False, zoned, near, chunks)
 
     moved = pos.sum(axis=1)
-    assert fail_safe(pos) == 1
+    fail_safe(pos)
     assert not self_intersects(pos.T)
     assert np.all(np.abs(pos.sum(axis=1) - moved) <= MOMENTUM_ROUNDOFF * n)
     assert zoned[0] == 1
 
     simple = prev + 0.01
     before = simple.copy()
-    assert fail_safe(simple) == 0
+    fail_safe(simple)
     assert np.array_equal(simple, before) and zoned[0] == 1

@@ -574,15 +574,13 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     simple ends it simple (unless a moving collider holds the crossing), with its momentum (unless a
     collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made).
     With `exact_area` (method kot), a ring the zones moved and no collider touches is then projected onto
-    its target area again, unless that crosses it again: the area stays exact wherever it can. zoned[b] counts the
-    substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
+    its target area again, unless that crosses it again: the area stays exact wherever it can. zoned[b]
+    counts the substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
     substep a little inside one (the next substep's collider stage puts it back).
 
     A ring whose chunks were all apart (find_self_contacts: near[b] = 0) and whose vertices the iterations
     moved less than STILL_SIMPLE × the reach from their predicted places x_prev + h v is not checked: its
-    parts were farther apart than the reach, and came closer by less than half of it. Returns the number
-    of rings the fail-safe moved."""
-    rings = 0
+    parts were farther apart than the reach, and came closer by less than half of it."""
     no_zone = np.empty(0, np.int64)
     for b in numba.prange(offsets.shape[0] - 1):
         if not awake[b]:
@@ -600,8 +598,9 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
         if not _crossings_into_zones(pos, o, e, chunks, no_zone):
             continue
         zoned[b] += 1
-        rings += 1
-        zone = np.arange(n)
+        zone = np.empty(n, np.int64)
+        for k in range(n):
+            zone[k] = k
         _crossings_into_zones(pos, o, e, chunks, zone)
         sums = np.empty((n, 9))
         for rounds in range(ZONE_ROUNDS):
@@ -621,4 +620,3 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
         if _crossings_into_zones(pos, o, e, chunks, no_zone):
             for k in range(n):
                 pos[0, o + k], pos[1, o + k] = kept[0, k], kept[1, k]
-    return rings
