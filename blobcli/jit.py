@@ -45,10 +45,12 @@ def stage_kernel(fn):
     (`if COLLIDES:` with COLLIDES false), so a build compiles only the stages its scene runs.
 
     Serial and parallel builds give the same bits: a prange loop's iterations write only their own
-    slots, and none sums across them: a stage that returned such a sum (a reduction in its prange loop,
-    or a.sum(), which its parallel build runs as one) made the step's build crash whenever it was loaded
-    from the disk cache, though it ran when just compiled (dev, 2026-11-26; numba issue #8578 has the
-    same symptom for nested parallel functions). Such sums are taken by a serial loop after the prange.
+    slots. A caution, not understood: while find_self_contacts returned how many pairs it found (a
+    reduction in its prange loop, later a serial loop after it), the step's parallel build crashed when
+    loaded from the disk cache, in some processes every time, though it ran when just compiled (dev,
+    2026-11-26; numba issue #8578 has the same symptom for a parallel function called from a cached
+    one); the step now counts them itself. After changing a parallel stage, run a 1,000-blob scene twice
+    in new processes (the second loads the build) and once more after other scenes have compiled.
 
     Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step 3× slower,
     while at 1,000 blobs the parallel builds are far faster, on one thread too (the perimeter sweep:

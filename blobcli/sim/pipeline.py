@@ -49,7 +49,7 @@ from .integrate import (
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
-from .self_contact import find_self_contacts, keep_rings_simple, resolve_self_contacts
+from .self_contact import find_self_contacts, keep_rings_simple, pairs_found, resolve_self_contacts
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
 from .walls import (
@@ -169,8 +169,9 @@ def _advance(steps, state, model, settings, clock):
             s.spring_lam[:] = 0.0
             t = _lap(clock, LAP_PREDICT, t)
             # pairs of a vertex and an edge of its own ring that may meet this substep (sim/self_contact.py)
-            self_found = find_self_contacts(s.previous, s.position, m.offsets, s.awake, m.orient, m.rest_perimeter,
-                                            self_pairs, self_values, self_count, self_near, self_chunks)
+            find_self_contacts(s.previous, s.position, m.offsets, s.awake, m.orient, m.rest_perimeter, self_pairs,
+                               self_values, self_count, self_near, self_chunks)
+            self_found = pairs_found(self_count)
             t = _lap(clock, LAP_SELF_CONTACT, t)
             if COLLIDES:  # uniform grid of blob centres
                 pairs, partners, strips, count = find_blob_pairs(s.position, m.offsets, s.awake, s.center, s.radius,

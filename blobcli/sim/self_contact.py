@@ -288,8 +288,7 @@ def _set_skin(pos, o, e, chunks, apart):
 def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs, values, count, near, chunks):
     """Each awake ring's self-contact pairs for this substep (see above); prev: positions at its start,
     pos: predicted. near[b]: NEAR where two chunks of ring b may meet (else APART: keep_rings_simple may
-    skip it). A ring still in the skin of its last measurement is not measured. Returns the number of
-    pairs found (none: the resolve stage has nothing to do this substep)."""
+    skip it). A ring still in the skin of its last measurement is not measured."""
     for b in numba.prange(offsets.shape[0] - 1):
         count[b] = 0
         near[b] = APART
@@ -316,8 +315,12 @@ def find_self_contacts(prev, pos, offsets, awake, orient, rest_perimeter, pairs,
                     _keep_pairs(prev, pos, orient[b], o, e, d, d_to, c, c_to, reach, gap, pairs, values, slot0, count,
                                 b)
         _set_skin(pos, o, e, chunks, apart if near[b] == APART else 0.0)
-    found = 0  # (a serial loop: a reduction in the prange loop, or count.sum(), which the parallel build runs as
-    #            one, made a step whose build was loaded from numba's cache crash: numba issue #8578)
+
+
+@inline_kernel
+def pairs_found(count):
+    """How many pairs find_self_contacts found in all (none: the resolve stage has nothing to do)."""
+    found = 0
     for b in range(count.shape[0]):
         found += count[b]
     return found
