@@ -39,7 +39,8 @@ shortest edge. (Each chunk's edges lie in a cone about its chord; two cones of h
 whose axes are θ apart lie in one of half-angle (α_c + α_d + θ) / 2.) A round 32-gon's neighbouring
 chunks turn through 90° (8 edges of 11.25°): a blob that keeps its shape has no pair to test. A pair is
 kept when it is within R at either end of the substep or its path passes through the edge, up to
-PER_VERTEX per vertex.
+PER_VERTEX per vertex. A ring whose chunks were all apart keeps that shape as a skin (_in_skin): while it
+only moves rigidly and deforms a little from it, it is not measured again.
 
 What the iterations still leave crossed, keep_rings_simple mends after them (below).
 """
@@ -51,7 +52,7 @@ import numpy as np
 
 from ..jit import inline_kernel, stage_kernel
 from .area import project_area
-from .ring import next_in_ring, turn
+from .ring import next_in_ring, ring_means, turn
 
 CHUNK = 4  # edges per chunk of a ring
 GAP = 0.05  # × the mean rest edge: how close a vertex may come to an edge of its own ring
@@ -239,14 +240,7 @@ def _in_skin(prev, pos, o, e, chunks, reach):
     apart = chunks[SKIN, o]
     if apart == 0.0:
         return False
-    n = e - o
-    c0x = c0y = c1x = c1y = 0.0
-    for i in range(o, e):
-        c0x += prev[0, i]
-        c0y += prev[1, i]
-        c1x += pos[0, i]
-        c1y += pos[1, i]
-    c0x, c0y, c1x, c1y = c0x / n, c0y / n, c1x / n, c1y / n
+    c0x, c0y, c1x, c1y = ring_means(prev, pos, o, e)
     cross0 = dot0 = cross1 = dot1 = 0.0
     for i in range(o, e):
         yx, yy = chunks[REF_X, i], chunks[REF_Y, i]
@@ -275,11 +269,7 @@ def _set_skin(pos, o, e, chunks, apart):
     chunks[SKIN, o] = apart
     if apart == 0.0:
         return
-    cx = cy = 0.0
-    for i in range(o, e):
-        cx += pos[0, i]
-        cy += pos[1, i]
-    cx, cy = cx / (e - o), cy / (e - o)
+    cx, cy, _, _ = ring_means(pos, pos, o, e)
     for i in range(o, e):
         chunks[REF_X, i], chunks[REF_Y, i] = pos[0, i] - cx, pos[1, i] - cy
 
@@ -557,6 +547,7 @@ def _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums):
 
 @inline_kernel
 def _any_held(held, o, e):
+    """Whether a collider pushed any vertex of ring o..e this substep."""
     for i in range(o, e):
         if held[i] != 0.0:
             return True
@@ -605,7 +596,8 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
         for k in range(n):
             zone[k] = k
         _crossings_into_zones(pos, o, e, chunks, zone)
-        sums = np.empty((n, 9))
+        sums = np.empty((n, 9))  # per zone root: Σ x, Σ y, Σ x_prev, Σ y_prev, members, Σ q × r, Σ q · r, Σ held,
+        #                          members a moving collider holds (_move_zones_rigidly)
         for rounds in range(ZONE_ROUNDS):
             _move_zones_rigidly(pos, prev, held, wall_velocity, o, e, zone, sums)
             if not _crossings_into_zones(pos, o, e, chunks, zone):
