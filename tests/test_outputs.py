@@ -420,8 +420,10 @@ def test_15_a_run_that_ends_inside_out_says_so_and_records_it(tmp_path, monkeypa
 
     def flipping_advance(state, model, params, *args, **kwargs):
         done = real_advance(state, model, params, *args, **kwargs)
-        if state.steps_done[0] == params.steps:  # after the last step (self-contact would keep a ring flipped
-            state.pos[:, 0] *= -1.0  # earlier inside out) a mirror image: every ring turned inside out
+        # after the last step only, a mirror image: every ring turned inside out (mirrored after each call,
+        # a ring would be mirrored back by the next, which self-contact keeps from turning itself over between)
+        if state.steps_done[0] == params.steps:
+            state.pos[:, 0] *= -1.0
         return done
     monkeypatch.setattr(run_module, "advance", flipping_advance)
     code, out, _ = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
