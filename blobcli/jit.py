@@ -45,12 +45,15 @@ def stage_kernel(fn):
     (`if COLLIDES:` with COLLIDES false), so a build compiles only the stages its scene runs.
 
     Serial and parallel builds give the same bits: a prange loop's iterations write only their own
-    slots. A caution, not understood: while find_self_contacts returned how many pairs it found (a
-    reduction in its prange loop, later a serial loop after it), the step's parallel build crashed when
-    loaded from the disk cache, in some processes every time, though it ran when just compiled (dev,
-    2026-11-26; numba issue #8578 has the same symptom for a parallel function called from a cached
-    one); the step now counts them itself. After changing a parallel stage, run a 1,000-blob scene twice
-    in new processes (the second loads the build) and once more after other scenes have compiled.
+    slots. A parallel build is loaded from the disk cache only once numba's threading layer is up
+    (`build` starts it): the step's driver has no prange loop of its own, so it is compiled with
+    parallel=False, and numba, loading it from the cache, need not start the threads its parallel
+    stages run on (numba issue #8578; its workaround). Seen (dev, 2026-11-26, gdb): one cached build
+    of a 300-blob pile with sleeping crashed on its first call, a jump to a null pointer, in every
+    new process that called pipeline.advance, and ran in every one that had started the threads
+    first (`numba.get_num_threads()`; `blobsim run` does, to pick its thread count). How that cache
+    entry was made is not known: compiled and then loaded in two clean processes, the same build
+    ran without the threads started.
 
     Why both (dev, `blobsim bench`): a parallel launch costs ~2 µs, which made a one-blob step 3× slower,
     while at 1,000 blobs the parallel builds are far faster, on one thread too (the perimeter sweep:
@@ -110,6 +113,8 @@ def build(serial, is_parallel: bool = False, config: dict | None = None, entry: 
     _, fn = _STAGES[id(serial)]
     bound = tuple(sorted((name, config[name]) for name in _reads(fn, config)))
     parallel = is_parallel and _has_prange(fn)
+    if parallel:  # the threads its stages run on, up before a cached build is loaded (stage_kernel)
+        numba.get_num_threads()
     if not bound and not parallel:
         _ASKED[asked] = serial
         return serial
