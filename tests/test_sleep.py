@@ -177,6 +177,31 @@ def test_a_blob_is_still_while_it_goes_nowhere_on_average():
     assert asleep_at[2] is None
 
 
+def test_an_island_of_blobs_creeping_slower_than_sleep_speed_sleeps():
+    """Two blobs of one island creep at 0.8 × sleep_speed, the second's still time begun 2.5 mm behind it:
+    measured from where their still times began, each would pass d = 5 mm every 1.25 s, out of step, and
+    never both have time_to_sleep at once (the island never slept). Each window measured from where the
+    last one ended, both are still: the island sleeps once the second has had time_to_sleep, at 1.625 s."""
+    from blobcli.sim.sleep import update_sleep
+    n, r, dt, sleep_speed, time_to_sleep = 16, 0.2, 1.0 / 60.0, 0.005, 1.0
+    theta = 2 * np.pi * np.arange(n) / n
+    ring = r * np.stack([np.cos(theta), np.sin(theta)])
+    pos = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 0.41)], axis=1)
+    offsets, pair = np.array([0, n, 2 * n]), np.array([[0, 1]])
+    awake, still = np.ones(2, np.uint8), np.zeros(2)
+    still_center, still_angle = np.array([[0.0, 0.0], [0.41 - 0.0025, 0.0]]), np.zeros(2)
+    vel = np.full((2, 2 * n), 0.0)
+    vel[0] = 0.8 * sleep_speed
+    for k in range(int(6 * time_to_sleep / dt)):
+        pos += vel * dt * awake.repeat(n)
+        update_sleep(pos, pos.copy(), vel.copy(), offsets, pair, np.zeros(2 * n), np.zeros((4, 2 * n)),
+                     np.full((2, 2 * n), -1, np.int64), awake, still, still_center, still_angle, sleep_speed,
+                     time_to_sleep, dt)
+        if not awake.any():
+            break
+    assert not awake.any() and (k + 1) * dt == pytest.approx(1.625, abs=2 * dt)
+
+
 def test_the_file_records_who_is_awake_and_resumes_the_sleep_state(tmp_path):
     path = tmp_path / "pile.toml"
     path.write_text(PILE.format(sleep="true", extra=""))
