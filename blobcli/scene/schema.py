@@ -124,7 +124,8 @@ class SceneSettings:
                       "woken by a moving blob coming near", "bool")
     sleep_speed: float = key(0.005, "m/s", "a blob is at rest while it goes slower than this on average over "
                              "time_to_sleep: its centre stays within sleep_speed × time_to_sleep of where its rest "
-                             "began, and its turn × radius too (at most 0.1 m/s: faster is not at rest)", "float",
+                             "began (or its last whole time_to_sleep of rest ended), and its turn × radius too (at "
+                             "most 0.1 m/s: faster is not at rest)", "float",
                              between(1e-9, 0.1))
     time_to_sleep: float = key(1.0, "s", "how long every blob of an island must stay at rest before it sleeps "
                                "(at least 0.1 s: a shorter rest is a blob at the top of a bounce)", "float",
