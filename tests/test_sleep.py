@@ -190,7 +190,7 @@ def test_an_island_of_blobs_creeping_slower_than_sleep_speed_sleeps():
     offsets, pair = np.array([0, n, 2 * n]), np.array([[0, 1]])
     awake, still = np.ones(2, np.uint8), np.zeros(2)
     still_center, still_angle = np.array([[0.0, 0.0], [0.41 - 0.0025, 0.0]]), np.zeros(2)
-    vel = np.full((2, 2 * n), 0.0)
+    vel = np.zeros((2, 2 * n))
     vel[0] = 0.8 * sleep_speed
     for k in range(int(6 * time_to_sleep / dt)):
         pos += vel * dt * awake.repeat(n)
