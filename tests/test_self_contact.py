@@ -40,8 +40,8 @@ def test_the_fail_safe_moves_a_crossed_part_rigidly_and_keeps_the_momentum():
     zoned, near, chunks = np.zeros(1, np.int64), np.ones(1, np.uint8), np.zeros((CHUNK_ROWS, n))
 
     def fail_safe(x):
-        keep_rings_simple(x, prev, still, 1.0, held, np.zeros((6, n)), inv_mass, offsets, awake, perimeter,
-                                 target, False, zoned, near, chunks)
+        keep_rings_simple(x, prev, still, 1.0, held, np.zeros((6, n)), inv_mass, offsets, awake, perimeter, target,
+                          False, zoned, near, chunks)
 
     moved = pos.sum(axis=1)
     fail_safe(pos)
