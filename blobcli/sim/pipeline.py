@@ -232,14 +232,24 @@ def _advance(steps, state, model, settings, clock):
                                               hold, m.offsets, s.awake, m.orient, m.material, self_pairs, self_values,
                                               self_count, it % 2 == 1)
                         t = _lap(clock, LAP_SELF_CONTACT, t)
-            if LOADED:
-                finish_loaded_walls(m.walls, s.static_pose, h)
-                t = _lap(clock, LAP_STATICS, t)
             # where the constraints left two edges of a ring crossed, their ends move rigidly for the substep
+            zoned_before = zoned.sum()
             keep_rings_simple(s.position, s.previous, s.velocity, h, s.contact_depth, s.contact_material, m.inv_mass,
                               m.offsets, s.awake, m.rest_perimeter, m.target_area, METHOD == KOT, zoned, self_near,
                               self_chunks)
             t = _lap(clock, LAP_SELF_CONTACT, t)
+            if STATICS and (self_found > 0 or zoned.sum() > zoned_before):
+                # the statics have the last word: a vertex that the self-contacts or a zone moved into a collider
+                # is put back now; left there, the next substep would take the far side of a segment (or of a
+                # moving wall's line) for the side it belongs to, and keep it there
+                collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
+                                s.contact_normal, s.contact_depth, s.contact_material, s.touch, h)
+                if LOADED:
+                    yield_loaded_walls(s.position, m.inv_mass, m.walls, s.static_pose, m.statics, s.placed, s.touch)
+                t = _lap(clock, LAP_STATICS, t)
+            if LOADED:
+                finish_loaded_walls(m.walls, s.static_pose, h)
+                t = _lap(clock, LAP_STATICS, t)
             # v = (x - x_prev) / h (rotation read as an angle), kinetic friction at static contacts
             update_velocities(s.position, s.previous, m.offsets, s.awake, s.velocity, s.contact_normal,
                               s.contact_depth, s.contact_material, h)

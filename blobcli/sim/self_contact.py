@@ -569,8 +569,8 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made).
     With `exact_area` (method kot), a ring the zones moved and no collider touches is then projected onto
     its target area again, unless that crosses it again: the area stays exact wherever it can. zoned[b]
-    counts the substeps in which ring b needed this. No collider acts after it: a zone moved rigidly may end a
-    substep a little inside one (the next substep's collider stage puts it back).
+    counts the substeps in which ring b needed this. A zone moved rigidly may go into a collider (a moving
+    one has gone on since the substep began): the statics act again after it (pipeline).
 
     A ring whose chunks were all apart (find_self_contacts: near[b] = 0) and whose vertices the iterations
     moved less than STILL_SIMPLE × the reach from their predicted places x_prev + h v is not checked: its
