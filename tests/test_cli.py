@@ -69,12 +69,21 @@ def test_run_writes_a_complete_h5md_file_and_one_summary_line(tmp_path):
         assert list(f["parameters/blob_offsets"][...]) == [0, 32]
         assert [n.decode() for n in f["parameters/blob_names"][...]] == ["solo"]
         p = f["parameters"].attrs
-        assert (p["dt"], p["substeps"], p["iterations"], p["method"]) == (1 / 60, 4, 2, "kot")
+        assert (p["dt"], p["substeps"], p["max_substeps"], p["iterations"], p["method"]) == (1 / 60, 4, 16, 2, "kot")
         assert "numba" in p and "numpy" in p
         assert f["parameters/scene"][()].decode() == ONE_BLOB
         assert f["restart"].attrs["step"] == 120
         np.testing.assert_array_equal(f["restart/position"][...], pos["value"][-1])
     assert not Path(str(out) + ".partial").exists()
+
+
+def test_the_summary_says_how_many_steps_took_more_substeps(tmp_path):
+    """A blob at 20 m/s moves 0.33 m a step: half an edge (29 mm) a substep takes 12 (integrate.substeps_for)."""
+    text = ONE_BLOB.replace("steps = 120", "steps = 3\ngravity = [0.0, 0.0]").replace(
+        "radius = 0.5", "radius = 0.3\nvelocity = [20.0, 0.0]")
+    r = blobsim("run", write(tmp_path, text), "-o", tmp_path / "o.h5", "-q")
+    assert r.returncode == 0, r.stderr
+    assert "; 3 steps took more substeps than the scene's (up to 12)" in r.stdout
 
 
 def test_every_records_every_kth_step_and_cli_overrides(tmp_path):

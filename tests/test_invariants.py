@@ -1,9 +1,12 @@
 """Physical invariants of the solver, each with its tolerance from conftest."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from conftest import (
     AREA_ROUNDOFF,
+    COARSE_STEP_AREA,
     COM_ROUNDOFF,
     COULOMB_SLIDE,
     DROP_AXIS,
@@ -32,9 +35,10 @@ from conftest import (
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from blobcli import blob_measures, build, build_params, step
+from blobcli import blob_measures, build, build_params, load_scene, step
 from blobcli.geometry import depth_inside_polygon, first_crossing
 from blobcli.sim.pipeline import advance
+from blobcli.tools.stress import STRESS_DIR as STRESS_SCENES
 
 FAIL_SAFE_AREA = 1e-3  # relative area error of a free blob after a step the self-contact fail-safe acted in
 
@@ -106,6 +110,7 @@ def free_fall(substeps):
     text = f"""
 [scene]
 substeps = {substeps}
+max_substeps = {substeps}
 gravity = [0.5, -9.81]
 [[blob]]
 center = [1.0, 2.0]
@@ -132,6 +137,32 @@ def test_free_fall_converges_to_the_parabola_at_first_order():
     errors = [np.linalg.norm(free_fall(k)[0] - exact) for k in (2, 4, 8)]
     assert abs(errors[0] / errors[1] - 2.0) < FIRST_ORDER
     assert abs(errors[1] / errors[2] - 2.0) < FIRST_ORDER
+
+
+def test_a_step_too_coarse_for_its_blobs_takes_more_substeps():
+    """`blobsim stress`'s large_dt: three blobs fall into a bowl in steps of 1/10 s with one substep. Each step takes
+    the substeps that keep a blob's move within half an edge and its sag under gravity within 5% of one
+    (integrate.substeps_for): the areas stay within the stress judge's 10% and no ring crosses itself. Held to one
+    substep (max_substeps = 1) the same scene squeezes a blob by 23%."""
+    sc = load_scene(STRESS_SCENES / "large_dt.toml")
+    model, _ = build(sc)
+
+    def worst_area_error(params):
+        _, state = build(sc)
+        worst = 0.0
+        for _ in range(params.steps):
+            advance(state, model, params, 1)
+            area, _ = blob_measures(state, model)
+            worst = max(worst, float(np.max(np.abs(area / model.target_area - 1.0))))
+            assert not any(self_intersects(state.pos[o:e]) for o, e in zip(model.offsets[:-1], model.offsets[1:]))
+        return worst, state.substeps_taken
+
+    params = build_params(sc)
+    worst, (most, more) = worst_area_error(params)
+    assert worst < COARSE_STEP_AREA
+    assert params.substeps == 1 and most > 1 and more == params.steps
+    worst, (most, more) = worst_area_error(replace(params, max_substeps=1))
+    assert worst > COARSE_STEP_AREA and most == 1 and more == 0
 
 
 def test_internal_stages_conserve_momentum():

@@ -86,7 +86,7 @@ LAYOUT = """\
     target_area              float64 [blobs]  (m²)
     mass                     float64 [blobs]  (kg)
     scene                    str: the scene's TOML text
-      attrs: dt, substeps, iterations, method, damping, gravity, sleep, sleep_speed, time_to_sleep, steps,
+      attrs: dt, substeps, max_substeps, iterations, method, damping, gravity, sleep, sleep_speed, time_to_sleep, steps,
              every, source,
              blobsim_version, python, numpy, numba, llvmlite, h5py, hdf5, platform, machine,
              numba_threads, env_NUMBA_NUM_THREADS, env_OMP_NUM_THREADS, env_OPENBLAS_NUM_THREADS,
@@ -263,7 +263,8 @@ class TrajectoryWriter:
         p.create_dataset("target_area", data=np.abs(model.target_area))
         p.create_dataset("mass", data=model.mass)
         p.create_dataset("scene", data=scene.text, dtype=h5py.string_dtype())
-        attrs = dict(dt=params.dt, substeps=params.substeps, iterations=params.iterations, method=params.method,
+        attrs = dict(dt=params.dt, substeps=params.substeps, max_substeps=params.max_substeps,
+                     iterations=params.iterations, method=params.method,
                      damping=params.damping, gravity=params.gravity, sleep=params.sleep,
                      sleep_speed=params.sleep_speed, time_to_sleep=params.time_to_sleep, steps=params.steps,
                      every=params.every,
@@ -660,7 +661,9 @@ def _resume_problems(f, path, scene, params) -> list[str]:
         problems = []
         if text(p["scene"][()]) != scene.text:
             problems.append(f"{path}: was run from a different scene text than {scene.source}")
-        for key in ("dt", "substeps", "iterations", "method", "every"):
+        for key in ("dt", "substeps", "iterations", "method", "every", "max_substeps"):
+            if key not in p.attrs:  # (max_substeps: not in files of blobsim 0.1 before 2026-11-26)
+                continue
             was, now = p.attrs[key], getattr(params, key)
             if was != now:
                 problems.append(f"{path}: was run with {key} = {was}, not {now}")

@@ -53,6 +53,7 @@ class RunResult:
     message: str = ""
     warning: str = ""  # blobs that ended inside out or self-intersecting
     written: bool = True  # False: nothing was published at `path`
+    more_substeps: tuple = (0, 0)  # (steps that took more substeps than the scene's `substeps`, the most one took)
 
     @property
     def exit_code(self) -> int:
@@ -65,6 +66,9 @@ class RunResult:
         where = f"wrote {self.path}" if self.written else "wrote nothing"
         line = (f"{head}: {self.steps} steps, {self.sim_time:.4g} s simulated in {self.wall_time:.3g} s "
                 f"({rate:.4g} steps/s), worst area error {self.worst_area_error:.2e}, {where}")
+        steps, most = self.more_substeps
+        if steps:  # integrate.substeps_for
+            line += f"; {steps} step{'s' if steps > 1 else ''} took more substeps than the scene's (up to {most})"
         return line + (f"; warning: {self.warning}" if self.warning else "")
 
 
@@ -134,7 +138,8 @@ def _run_chosen(scene, path, progress, resume, announce, model, state, params, c
 
     def result(status, message="", warning="", written=True):
         return RunResult(path=path, steps=done, sim_time=done * params.dt, wall_time=time.perf_counter() - start,
-                         worst_area_error=worst, status=status, message=message, warning=warning, written=written)
+                         worst_area_error=worst, status=status, message=message, warning=warning, written=written,
+                         more_substeps=(int(state.substeps_taken[1]), int(state.substeps_taken[0])))
 
     bar = None
     status, message, done = "complete", "", 0

@@ -112,7 +112,12 @@ class SceneSettings:
     duration: float | None = key(None, "s", "simulated time; default 5 s unless `steps` is given", "float", positive)
     steps: int | None = key(None, "", "number of steps (instead of `duration`)", "int", between(1, MAX_STEPS))
     dt: float = key(1 / 60, "s", "fixed time step", "float", time_step)
-    substeps: int = key(4, "", "substeps per step (h = dt / substeps)", "int", between(1, MAX_SUBSTEPS))
+    substeps: int = key(4, "", "substeps per step (h = dt / substeps): the least; a step takes more where fewer "
+                        "would let a blob move more than half an edge in one, or gravity sag it more than 5% of "
+                        "an edge (docs/physics.md, 'Substeps')", "int", between(1, MAX_SUBSTEPS))
+    max_substeps: int = key(16, "", "the most substeps a step may take (never fewer than `substeps`; set it to "
+                            "`substeps` for a fixed count); also at most what keeps substeps × iterations × "
+                            "vertices within the step's work bound", "int", between(1, MAX_SUBSTEPS))
     iterations: int = key(2, "", "solver iterations per substep", "int", between(1, MAX_ITERATIONS))
     gravity: tuple = key((0.0, -9.81), "m/s²", "gravitational acceleration", "vec2")
     method: str = key("kot", "", "area method: " + ", ".join(METHODS), "str")

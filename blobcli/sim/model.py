@@ -40,7 +40,7 @@ class SimulationError(Exception):
 class Params:
     """Resolved time stepping and world settings."""
     dt: float  # s
-    substeps: int
+    substeps: int  # the least per step ...
     iterations: int
     gravity: np.ndarray  # (2,) m/s²
     damping: float  # 1/s
@@ -53,6 +53,7 @@ class Params:
     box: tuple = (0.0, 0.0)  # m: the periodic box's sides [Lx, Ly]; (0, 0): an open world
     drag: float = 0.0  # 1/s: viscous drag on all motion
     shear: float = 0.0  # the periodic box's Lees–Edwards shear strain γ (a schedule's)
+    max_substeps: int = 16  # ... and the most (integrate.substeps_for)
 
 
 @dataclass(frozen=True)
@@ -217,6 +218,8 @@ class State(NamedTuple):
     #                        as a material point of the other blob: an edge (its first vertex; -1: none) ...
     stick_t: np.ndarray  # (CONTACTS_PER_VERTEX, N) ... and the point's place along it, t in [0, 1]
     steps_done: np.ndarray  # (1,) int64: steps since t = 0 (the time colliders move by)
+    substeps_taken: np.ndarray  # (2,) int64: the most substeps a step took, and how many steps took more than the
+    #                             scene's `substeps`, since the run (or its resume) began (integrate.substeps_for)
     static_pose: np.ndarray  # (S, 6) each collider's pose (walls.py): dx, dy (m), θ (rad), and a loaded wall's
     #                          s (m), V (m/s) along its load direction, and s at the substep's start (m)
     static_impulse: np.ndarray  # (S, 3) the impulses the blobs gave each collider over the last step: Jx, Jy (N s),
@@ -265,7 +268,7 @@ def build_params(scene: Scene) -> Params:
                   gravity=np.array(s.gravity, dtype=np.float64), damping=s.damping,
                   method=s.method, steps=scene.steps, every=scene.output.every, sleep=s.sleep and s.drag == 0.0,
                   sleep_speed=s.sleep_speed, time_to_sleep=s.time_to_sleep, box=s.periodic or (0.0, 0.0),
-                  drag=s.drag)
+                  drag=s.drag, max_substeps=s.max_substeps)
 
 
 def build(scene: Scene) -> tuple[Model, State]:
@@ -339,6 +342,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   blob_contact_depth=np.zeros(n),
                   stick_edge=np.full((CONTACTS_PER_VERTEX, n), -1, dtype=np.int64),
                   stick_t=np.zeros((CONTACTS_PER_VERTEX, n)), steps_done=np.zeros(1, np.int64),
+                  substeps_taken=np.zeros(2, np.int64),
                   static_pose=np.zeros((len(scene.statics), WALL_POSE_COLUMNS)),
                   static_impulse=np.zeros((len(scene.statics), 3)), placed=initial_placed(statics),
                   touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))),

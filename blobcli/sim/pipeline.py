@@ -22,6 +22,7 @@ import numpy as np
 
 from ..colliders import SOLVERS
 from ..jit import build, in_disk_cache, inline_kernel, stage_kernel
+from ..scene.schema import MAX_STEP_WORK
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
 from .collide import (
     PAIRS_PER_BLOB,
@@ -44,6 +45,7 @@ from .integrate import (
     restitution,
     stop_impact_velocities,
     stop_impacts,
+    substeps_for,
     update_velocities,
 )
 from .measure import RUNAWAY, first_runaway
@@ -101,7 +103,8 @@ class StepSettings(NamedTuple):
     """Params and the model's numbers, as the compiled step reads them; `config`, what the scene
     uses, decides which build of the step runs."""
     dt: float  # s
-    substeps: int
+    substeps: int  # the least a step takes ...
+    most_substeps: int  # ... and the most (integrate.substeps_for)
     iterations: int
     gx: float  # m/s²
     gy: float
@@ -109,7 +112,6 @@ class StepSettings(NamedTuple):
     drag: float  # 1/s
     up_x: float  # -g / |g| (0 without gravity): "above", for the stacking rule of sim/collide.py
     up_y: float
-    rest_speed: float  # m/s: slower impacts never bounce (integrate.bounce)
     sleep_speed: float  # m/s: islands at rest go to sleep once every blob has gone slower than this, on average ...
     time_to_sleep: float  # s ... for this long (∞ with sleeping off: the shared build runs the sleep stage)
     box_x: float  # m: the periodic box's sides; 0: an open world
@@ -125,8 +127,6 @@ def _advance(steps, state, model, settings, clock):
     `detail` blob pairs overlap (the state is then mid-step). With a clock (one slot per stage), each
     stage's wall time is added to its slot, in seconds."""
     s, m, c = state, model, settings
-    h = c.dt / c.substeps
-    damping = math.exp(-c.damping * h)
     blob_count = m.offsets.shape[0] - 1
     no_pairs = np.zeros((0, 2), np.int64)
     pairs, partners, strips = no_pairs, (np.zeros(blob_count + 1, np.int64), no_pairs[:, 0], no_pairs[:, 0]), \
@@ -147,11 +147,19 @@ def _advance(steps, state, model, settings, clock):
             s.steps_done[0] += 1
             continue
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
+        # the scene's substeps, or more where a blob would move or sag too far in one
+        substeps = substeps_for(s.position, s.velocity, m.offsets, s.awake, m.rest_perimeter, c.dt, g, c.substeps,
+                                c.most_substeps)
+        h = c.dt / substeps
+        damping = math.exp(-c.damping * h)
+        rest_speed = max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED)  # m/s: slower impacts never bounce (bounce)
+        s.substeps_taken[0] = max(s.substeps_taken[0], substeps)
+        s.substeps_taken[1] += substeps > c.substeps
         if PERIODIC:  # the step's contact impulses, for the stress (sim/packing.py)
             s.packing[0][:] = 0.0
-        for sub in range(c.substeps):
+        for sub in range(substeps):
             if MOVING:  # colliders to where they are at the substep's end; those near sleeping blobs wake them
-                place_walls((s.steps_done[0] * c.substeps + sub) * h, h, m.walls, s.static_pose, m.statics, s.placed,
+                place_walls((s.steps_done[0] * substeps + sub) * h, h, m.walls, s.static_pose, m.statics, s.placed,
                             s.position, m.offsets, s.awake, s.still)
                 t = _lap(clock, LAP_WALLS, t)
             if c.damping > 0.0:
@@ -208,7 +216,7 @@ def _advance(steps, state, model, settings, clock):
                     # contacts are found once per step, and again for blobs that went past their margin
                     keep_blob_contacts(s.position, s.velocity, m.inv_mass, m.offsets, m.blob_of, s.awake, m.orient,
                                        s.center, s.radius, s.edges, pairs, partners, not found,
-                                       (c.substeps - sub) * h, g, s.anchor, s.budget, s.moved, s.c_edge,
+                                       (substeps - sub) * h, g, s.anchor, s.budget, s.moved, s.c_edge,
                                        s.stick_edge, s.stick_t, box)
                     found = True
                     t = _lap(clock, LAP_BLOB_DETECT, t)
@@ -259,7 +267,7 @@ def _advance(steps, state, model, settings, clock):
             t = _lap(clock, LAP_VELOCITIES, t)
             if STATICS:  # leave statics at e × impact speed, never faster
                 restitution(s.position, s.velocity, m.offsets, s.awake, s.predicted, s.contact_normal,
-                            s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, c.rest_speed)
+                            s.contact_depth, s.contact_material, s.impact, c.gx, c.gy, rest_speed)
                 t = _lap(clock, LAP_RESTITUTION, t)
             if STATICS:  # the velocity stages' impulses into the colliders' records ...
                 record_contact_impulses(s.position, s.previous, s.velocity, m.inv_mass, m.offsets, s.awake,
@@ -275,7 +283,7 @@ def _advance(steps, state, model, settings, clock):
                 t = _lap(clock, LAP_BLOB_VELOCITIES, t)
             if COLLIDES:  # blob pairs leave each other at e × impact speed, never faster
                 blob_restitution(s.position, s.velocity, m.offsets, m.inv_mass, m.blob_of, s.awake, m.material,
-                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, c.rest_speed, box,
+                                 s.c_edge, s.c_hit, pairs, partners, s.predicted, pair_impact, rest_speed, box,
                                  s.packing[0])
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
@@ -348,11 +356,13 @@ def settings(model: Model, params: Params) -> StepSettings:
     """What the compiled step needs of params and the model."""
     g = math.hypot(params.gravity[0], params.gravity[1])
     up = -params.gravity / g if g > 0 else np.zeros(2)
-    h = params.dt / params.substeps
-    return StepSettings(dt=params.dt, substeps=params.substeps, iterations=params.iterations,
+    # the most: the scene's max_substeps, within the step's work bound (never fewer than `substeps`)
+    vertices = int(model.offsets[-1])
+    most = max(params.substeps, min(params.max_substeps, MAX_STEP_WORK // max(params.iterations * vertices, 1)))
+    return StepSettings(dt=params.dt, substeps=params.substeps, most_substeps=most, iterations=params.iterations,
                         gx=float(params.gravity[0]), gy=float(params.gravity[1]), damping=params.damping,
                         drag=params.drag,
-                        up_x=float(up[0]), up_y=float(up[1]), rest_speed=max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED),
+                        up_x=float(up[0]), up_y=float(up[1]),
                         sleep_speed=params.sleep_speed,
                         time_to_sleep=params.time_to_sleep if params.sleep else math.inf,
                         box_x=float(params.box[0]), box_y=float(params.box[1]),
@@ -393,10 +403,10 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
 
 def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
             step_settings: StepSettings | None = None, arrays=None) -> int:
-    """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps), in one
-    compiled call. Returns the steps done: fewer than asked only when a step left a vertex non-finite
-    or beyond RUNAWAY (measure.first_runaway finds it). Raises SimulationError when far more blob
-    pairs overlap than memory can hold.
+    """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps or more, up to
+    `max_substeps`: integrate.substeps_for), in one compiled call. Returns the steps done: fewer than
+    asked only when a step left a vertex non-finite or beyond RUNAWAY (measure.first_runaway finds it).
+    Raises SimulationError when far more blob pairs overlap than memory can hold.
 
     With `clock` (a dict), each stage's wall time is added to clock[stage name], in seconds:
     `blobsim bench` profiles the real step this way. `step_settings` (from `settings`) saves

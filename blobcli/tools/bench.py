@@ -143,7 +143,8 @@ def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tupl
 
 def _core_scene(blobs: int, substeps: int, iterations: int) -> str:
     """Blobs apart on a floor, damping off: only the core stages move anything."""
-    return scene_text(blobs, "apart", f"damping = 0.0\nsubsteps = {substeps}\niterations = {iterations}")
+    return scene_text(blobs, "apart", f"damping = 0.0\nsubsteps = {substeps}\nmax_substeps = {substeps}\n"
+                                      f"iterations = {iterations}")
 
 
 def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, repeats: int) -> dict | None:
@@ -156,8 +157,9 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
     import numba
 
     from ..scene.schema import parse_scene
+    from ..sim.integrate import MIN_REST_SPEED, REST_SPEED_FACTOR
     from ..sim.model import build, build_params
-    from ..sim.pipeline import advance, settings
+    from ..sim.pipeline import advance
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         return None
@@ -178,7 +180,8 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
                                                     model.target_area, np.zeros(model.vertex_count),
                                                     model.rest_perimeter, np.zeros(model.blob_count),
                                                     np.zeros((model.blob_count, 4)), state.impact.copy())]
-        step = settings(model, params)
+        g, h = math.hypot(*params.gravity), params.dt / substeps
+        rest_speed = max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED)  # as the step's (pipeline._advance)
         ptr = ctypes.POINTER(ctypes.c_double)
 
         def run_c(n_steps):
@@ -188,7 +191,7 @@ def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, 
                          ctypes.c_double(params.gravity[1]), ctypes.c_long(model.blob_count),
                          off.ctypes.data_as(ctypes.POINTER(ctypes.c_long)), *[a.ctypes.data_as(ptr) for a in floats],
                          ctypes.c_double(mu_s), ctypes.c_double(mu_k),
-                         ctypes.c_double(max(blob.restitution, floor.restitution)), ctypes.c_double(step.rest_speed))
+                         ctypes.c_double(max(blob.restitution, floor.restitution)), ctypes.c_double(rest_speed))
         run_c(steps)
         threads = numba.get_num_threads()
         numba.set_num_threads(1)
