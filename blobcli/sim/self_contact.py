@@ -567,6 +567,7 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
     ring moves rigidly (zones a collider pushed: see _move_zones_rigidly). A ring that began the substep
     simple ends it simple (unless a moving collider holds the crossing), with its momentum (unless a
     collider holds the zone); what is lost is the zones' relative motion (kinetic energy is never made).
+    A ring that began the substep crossed is left to the constraints, which untangle it (below).
     With `exact_area` (method kot), a ring the zones moved and no collider touches is then projected onto
     its target area again, unless that crosses it again: the area stays exact wherever it can. zoned[b]
     counts the substeps in which ring b needed this. A zone moved rigidly may go into a collider (a moving
@@ -590,6 +591,11 @@ def keep_rings_simple(pos, prev, vel, h, held, wall_velocity, inv_mass, offsets,
             if moved < bound:
                 continue
         if not _crossings_into_zones(pos, o, e, chunks, no_zone):
+            continue
+        if _crossings_into_zones(prev, o, e, chunks, no_zone):
+            # it began the substep crossed (so given, or a moving collider held a crossing): there is no simple
+            # shape to come back to, and the constraints untangle it (kot gives the lobe of positive area its
+            # area back and shrinks the other), which zones moved from a crossed start would undo every substep
             continue
         zoned[b] += 1
         zone = np.empty(n, np.int64)
