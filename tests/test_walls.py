@@ -433,11 +433,12 @@ def test_a_recording_draws_a_moving_collider_where_it_is_and_plots_a_loaded_wall
     assert abs(np.mean(last) - 200.0) < PISTON_FORCE * 200.0  # the blobs push back with the load
 
 
-@pytest.mark.parametrize("kind, geometry", [("segment", 'a = [-3.0, -1.0]\nb = [-3.0, 1.0]'),
-                                            ("box", 'center = [-3.0, 0.0]\nsize = [0.02, 2.0]')])
-def test_a_wall_at_100_m_per_s_sweeps_a_blob_along_and_never_through_it(kind, geometry):
-    """The swept tests see the wall's own motion: 0.42 m per substep, through a blob 0.6 m wide."""
-    text = f"""[scene]
+SEGMENT_AT_X_3 = 'a = [-3.0, -1.0]\nb = [-3.0, 1.0]'
+
+
+def wall_at_100_m_per_s(kind, geometry):
+    """A blob at rest at the origin, a wall at x = -3 m coming at it at 100 m/s, no gravity."""
+    return f"""[scene]
 duration = 0.2
 gravity = [0.0, 0.0]
 [[blob]]
@@ -448,6 +449,13 @@ kind = "{kind}"
 {geometry}
 velocity = [100.0, 0.0]
 """
+
+
+@pytest.mark.parametrize("kind, geometry", [("segment", SEGMENT_AT_X_3),
+                                            ("box", 'center = [-3.0, 0.0]\nsize = [0.02, 2.0]')])
+def test_a_wall_at_100_m_per_s_sweeps_a_blob_along_and_never_through_it(kind, geometry):
+    """The swept tests see the wall's own motion: 0.42 m per substep, through a blob 0.6 m wide."""
+    text = wall_at_100_m_per_s(kind, geometry)
     front = []
     _, state, params = run(text, each=lambda n, s: front.append(s.pos[:, 0].min() - (-3.0 + 100.0 * (n + 1) / 60)))
     assert min(front) > -STATIC_PENETRATION - 0.01  # never behind the wall (a box's face is 0.01 m from its centre)
@@ -458,19 +466,9 @@ def test_a_vertex_moved_after_the_statics_is_never_left_behind_a_moving_segment(
     """The wall of the test above hits at 4 substeps; the steps after it take 16 (a user's resumed run, or a
     step that takes more). Without the statics' last pass after the self-contacts and the fail-safe, a zone
     the fail-safe moved rigidly from where its substep began ended 6.6 mm behind the wall's new line, and
-    from then on the segment took that side for the vertex's own: 3.8 cm behind two steps later."""
-    text = """[scene]
-gravity = [0.0, 0.0]
-[[blob]]
-center = [0.0, 0.0]
-radius = 0.3
-[[static]]
-kind = "segment"
-a = [-3.0, -1.0]
-b = [-3.0, 1.0]
-velocity = [100.0, 0.0]
-"""
-    sc = scene(text)
+    from then on the segment took that side for the vertex's own: 3.8 cm behind two steps later. (The steps after
+    the hit now take 16 by themselves, the blob carried at 100 m/s: the test sets it, to hold at any max_substeps.)"""
+    sc = scene(wall_at_100_m_per_s("segment", SEGMENT_AT_X_3))
     model, state = build(sc)
     params = build_params(sc)
     for n in range(8):
