@@ -147,7 +147,8 @@ def test_a_step_too_coarse_for_its_blobs_takes_more_substeps():
     sc = load_scene(STRESS_SCENES / "large_dt.toml")
     model, _ = build(sc)
 
-    def worst_area_error(params):
+    def run(params):
+        """The worst area error over the run (every ring simple at every step) and State.substeps_taken."""
         _, state = build(sc)
         worst = 0.0
         for _ in range(params.steps):
@@ -158,10 +159,10 @@ def test_a_step_too_coarse_for_its_blobs_takes_more_substeps():
         return worst, state.substeps_taken
 
     params = build_params(sc)
-    worst, (most, more) = worst_area_error(params)
+    worst, (most, more) = run(params)
     assert worst < COARSE_STEP_AREA
     assert params.substeps == 1 and most > 1 and more == params.steps
-    worst, (most, more) = worst_area_error(replace(params, max_substeps=1))
+    worst, (most, more) = run(replace(params, max_substeps=1))
     assert worst > COARSE_STEP_AREA and most == 1 and more == 0
 
 
