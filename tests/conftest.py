@@ -128,14 +128,15 @@ normal = [0.0, 1.0]
 _BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
 _SCENES = Path(__file__).resolve().parent.parent / "scenes"
 SHARED_BUILDS = {
-    # the shared builds (pipeline.shared_build) for kot and a periodic box, one after the other in one process
-    # (the stages they share compile once); test_builds.py's own one-blob build, then gas's shared build
+    # kot's shared build (pipeline.shared_build: it serves the periodic box too, so the second scene loads it);
+    # test_builds.py's own one-blob build, then gas's shared build
     "not slow": ([([_BLOB + FLOOR, "[scene]\nperiodic = [4.0, 4.0]\n" + _BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n"],
                    False)],
                  [(["[scene]\nduration = 0.1\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR], True),
                   (['[scene]\nmethod = "gas"\n' + _BLOB], False)]),
-    # the parallel builds, in one process: two processes compiling one parallel build at once can leave cache
-    # files that crash every later load (numba issue #10128); and the own builds test_builds.py compares
+    # the parallel build (kot's shared one: the three scenes share it), in one process: two processes compiling
+    # one parallel build at once can leave cache files that crash every later load (numba issue #10128); and
+    # the own builds test_builds.py compares
     "slow": ([([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False)],
              [([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True)]),
 }

@@ -80,26 +80,44 @@ def test_a_cold_build_prints_what_it_compiles_unless_quiet(tmp_path, monkeypatch
 
 _RESTING = ONE_BLOB.replace("duration = 0.1", "duration = 4.0").replace("center = [0.0, 1.0]", "center = [0.0, 0.5]")
 _ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
+# two blobs meeting across the edge x = ±2 of a periodic box (test_periodic.py's PAIR)
+_ACROSS = """[scene]
+gravity = [0.0, 0.0]
+periodic = [4.0, 3.0]
+[[blob]]
+center = [1.4, 0.05]
+radius = 0.4
+velocity = [2.0, 0.0]
+angular_velocity = 1.0
+[[blob]]
+center = [-1.4, -0.05]
+radius = 0.3
+mass = 0.6
+velocity = [-2.0, 0.5]
+"""
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["drum", "press", "piston", "press sleep off", "resting", "alone"])
+@pytest.mark.parametrize("name", ["drum", "press", "piston", "press sleep off", "resting", "alone", "across"])
 def test_the_shared_build_gives_a_scenes_own_bits(name):
     """The shared build (pipeline.shared_build, which the suite runs) gives the bits of a scene's own build:
     shipped scenes with circles, moving and loaded walls; the press with sleeping off (the sleep stage runs,
     nobody sleeps); one blob coming to rest on a floor and falling asleep (blob contacts over no pairs, the
     moving-wall code with none moving, every blob asleep); one blob alone, no collider, sleeping off (every
-    collider stage over no colliders). gish's and crusher's goldens, made with their own builds, are compared
-    in the fast tier under the shared build too."""
+    collider stage over no colliders); two blobs meeting across a periodic box's edge (the shared build's
+    periodic stages, run only where there is a box: the open-world cases above run without them), their
+    packing records too. gish's and crusher's goldens, made with their own builds, are compared in the fast tier under
+    the shared build too."""
     from pathlib import Path
 
     from blobcli import load_scene, parse_scene
     from blobcli.sim.model import PARALLEL_BLOBS
     shipped = Path(__file__).resolve().parent.parent / "scenes" / f"{name.split()[0]}.toml"
-    text = {"resting": _RESTING, "alone": _ALONE}.get(name) or shipped.read_text()
+    text = {"resting": _RESTING, "alone": _ALONE, "across": _ACROSS}.get(name) or shipped.read_text()
     if name.endswith("sleep off"):
         text = text.replace("[scene]", "[scene]\nsleep = false", 1)
-    sc = parse_scene(text, name) if name in ("resting", "alone") or name.endswith("off") else load_scene(shipped)
+    own_text = name in ("resting", "alone", "across") or name.endswith("off")
+    sc = parse_scene(text, name) if own_text else load_scene(shipped)
     assert sc.blob_count < PARALLEL_BLOBS  # serial: the parallel builds give the same bits (test_collide)
     params = build_params(sc)
     model, _ = build(sc)
@@ -110,7 +128,10 @@ def test_the_shared_build_gives_a_scenes_own_bits(name):
     for step_settings in (own, shared):
         model, state = build(sc)
         pipeline.advance(state, model, params, 240, step_settings=step_settings)  # resting: asleep from step ~170
-        runs.append((state.pos.tobytes(), state.vel.tobytes(), state.static_impulse.tobytes(), state.awake.tobytes()))
+        runs.append((state.pos.tobytes(), state.vel.tobytes(), state.static_impulse.tobytes(), state.awake.tobytes(),
+                     *(a.tobytes() for a in state.packing)))
     assert runs[0] == runs[1]
+    if name == "across":  # they met (across the edge: nothing else is near), and pushed
+        assert abs(float(state.vel[:32, 0].mean()) - 2.0) > 0.1
     if name == "resting":
         assert not state.awake.any()  # it did fall asleep: the all-asleep step ran in both builds

@@ -155,7 +155,7 @@ def _advance(steps, state, model, settings, clock):
         rest_speed = max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED)  # m/s: slower impacts never bounce (bounce)
         s.substeps_taken[0] = max(s.substeps_taken[0], substeps)
         s.substeps_taken[1] += substeps > c.substeps
-        if PERIODIC:  # the step's contact impulses, for the stress (sim/packing.py)
+        if PERIODIC and c.box_x > 0.0:  # the step's contact impulses, for the stress (sim/packing.py)
             s.packing[0][:] = 0.0
         for sub in range(substeps):
             if MOVING:  # colliders to where they are at the substep's end; those near sleeping blobs wake them
@@ -288,7 +288,7 @@ def _advance(steps, state, model, settings, clock):
                 keep_impacts(pairs, blob_count, pair_impact, s.pair_key, s.pair_impact, s.pair_count)
                 release_sticks(s.c_hit, s.stick_edge)  # static friction holds only contacts that keep pushing
                 t = _lap(clock, LAP_BLOB_RESTITUTION, t)
-        if PERIODIC:  # the pairs in contact at the step's end, for the contact numbers (sim/packing.py)
+        if PERIODIC and c.box_x > 0.0:  # the pairs in contact at the step's end, for the contact numbers (packing.py)
             keep_touching(m.offsets, m.blob_of, s.awake, s.c_edge, s.c_hit, pairs, partners, s.packing[1],
                           s.packing[2])
         if SLEEP:  # islands of blobs at rest fall asleep, islands with a mover wake
@@ -341,15 +341,16 @@ def configuration(model: Model, params: Params) -> Configuration:
 
 
 def shared_build(config: Configuration) -> Configuration:
-    """The build that serves every scene of the same area method and box, whatever else it uses: every collider
-    kind, moving and loaded walls, blob contacts, sleeping. A stage a scene has nothing for runs over no rows
-    (no colliders of a kind, no moving or loaded wall, no blob pair with one blob), and sleeping is off at run
-    time (`settings`: nobody is ever still for time_to_sleep = ∞), so the bits are the scene's own build's
-    (tests/test_builds.py). Each configuration would otherwise compile a build of its own (each links and
-    optimizes the whole step again: 6-12 s on the 2-core machine): for a test suite, or a sweep over scenes of
+    """The build that serves every scene of the same area method, whatever else it uses: every collider kind,
+    moving and loaded walls, blob contacts, sleeping, a periodic box. A stage a scene has nothing for runs over
+    no rows (no colliders of a kind, no moving or loaded wall, no blob pair with one blob), sleeping is off at
+    run time (`settings`: nobody is ever still for time_to_sleep = ∞), and the periodic box's stages run only
+    where there is a box (box_x > 0), so the bits are the scene's own build's (tests/test_builds.py). Each
+    configuration would otherwise compile a build of its own (each links and optimizes the whole step again:
+    6-12 s on the 2-core machine; kot's periodic one, 27 s after kot's): for a test suite, or a sweep over scenes of
     different kinds."""
     return config._replace(collides=True, statics=True, planes=True, segments=True, circles=True, polygons=True,
-                           sleep=True, moving=True, loaded=True)
+                           sleep=True, moving=True, loaded=True, periodic=True)
 
 
 def settings(model: Model, params: Params) -> StepSettings:
