@@ -121,6 +121,25 @@ normal = [0.0, 1.0]
 """
 
 
+ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
+# scenes test_builds.py runs on their own builds, compiled before the slow tier's tests (SHARED_BUILDS):
+# one blob alone, no collider, sleeping off; two blobs meeting across the edge x = ±2 of a periodic box (test_periodic.py's PAIR)
+ACROSS = """[scene]
+gravity = [0.0, 0.0]
+periodic = [4.0, 3.0]
+[[blob]]
+center = [1.4, 0.05]
+radius = 0.4
+velocity = [2.0, 0.0]
+angular_velocity = 1.0
+[[blob]]
+center = [-1.4, -0.05]
+radius = 0.3
+mass = 0.6
+velocity = [-2.0, 0.5]
+"""
+
+
 # The builds most tests share, compiled before the tests fan out to one process per core (as a sweep compiles
 # before it fans out), so that the workers load them instead of compiling one build at the same time: for each
 # tier, two lanes of about equal work, run side by side; a lane runs its processes one after the other, each
@@ -135,10 +154,14 @@ SHARED_BUILDS = {
                  [(["[scene]\nduration = 0.1\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR], True),
                   (['[scene]\nmethod = "gas"\n' + _BLOB], False)]),
     # the parallel build (kot's shared one: the three scenes share it), in one process: two processes compiling
-    # one parallel build at once can leave cache files that crash every later load (numba issue #10128); and
-    # the own builds test_builds.py compares
+    # one parallel build at once can leave cache files that crash every later load (numba issue #10128); beside
+    # it, the own builds test_builds.py compares and the shared builds test_stress.py runs
     "slow": ([([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False)],
-             [([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True)]),
+             [([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True),
+              ([(_SCENES / "press.toml").read_text().replace("[scene]", "[scene]\nsleep = false", 1), ALONE, ACROSS],
+               True),
+              # the other area methods' shared builds, for test_stress.py (gas's is the fast tier's)
+              ([f'[scene]\nmethod = "{method}"\n' + _BLOB for method in ("xpbd", "springs")], False)]),
 }
 
 

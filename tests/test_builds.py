@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import FLOOR, cli, scene
+from conftest import ACROSS, ALONE, FLOOR, cli, scene
 
 from blobcli import build, build_params
 from blobcli.jit import in_disk_cache
@@ -79,22 +79,6 @@ def test_a_cold_build_prints_what_it_compiles_unless_quiet(tmp_path, monkeypatch
 
 
 _RESTING = ONE_BLOB.replace("duration = 0.1", "duration = 4.0").replace("center = [0.0, 1.0]", "center = [0.0, 0.5]")
-_ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
-# two blobs meeting across the edge x = ±2 of a periodic box (test_periodic.py's PAIR)
-_ACROSS = """[scene]
-gravity = [0.0, 0.0]
-periodic = [4.0, 3.0]
-[[blob]]
-center = [1.4, 0.05]
-radius = 0.4
-velocity = [2.0, 0.0]
-angular_velocity = 1.0
-[[blob]]
-center = [-1.4, -0.05]
-radius = 0.3
-mass = 0.6
-velocity = [-2.0, 0.5]
-"""
 
 
 @pytest.mark.slow
@@ -113,7 +97,7 @@ def test_the_shared_build_gives_a_scenes_own_bits(name):
     from blobcli import load_scene, parse_scene
     from blobcli.sim.model import PARALLEL_BLOBS
     shipped = Path(__file__).resolve().parent.parent / "scenes" / f"{name.split()[0]}.toml"
-    text = {"resting": _RESTING, "alone": _ALONE, "across": _ACROSS}.get(name) or shipped.read_text()
+    text = {"resting": _RESTING, "alone": ALONE, "across": ACROSS}.get(name) or shipped.read_text()
     if name.endswith("sleep off"):
         text = text.replace("[scene]", "[scene]\nsleep = false", 1)
     own_text = name in ("resting", "alone", "across") or name.endswith("off")
