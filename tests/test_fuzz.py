@@ -1,7 +1,7 @@
 """Two fuzzers: scenes (valid-extreme and invalid) and trajectory files (truncated, byte-flipped,
-crafted). Short in CI; run long by hand with, e.g.
+crafted). Short in CI (the file fuzzer in the slow tier); run long by hand with, e.g.
 
-    BLOBSIM_FUZZ_EXAMPLES=2000 pytest tests/test_fuzz.py
+    BLOBSIM_FUZZ_EXAMPLES=2000 pytest -m 'slow or not slow' tests/test_fuzz.py
 
 The contract they check: exit 0, 1 or 2 only; never a traceback or an internal error; nothing
 written for a refused scene; nothing written through a symlink, and no device or FIFO replaced,
@@ -21,6 +21,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import pytest
 from conftest import cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -152,6 +153,7 @@ NAMES = ["particles/blobs/position/value", "particles/blobs/position/step", "par
          "restart/position", "restart/velocity", "restart/impact", "restart/pair_key", "restart/pair_impact"]
 
 
+@pytest.mark.slow  # 40 damaged files, nine commands each: 16 s of the fast tier
 @FUZZ
 @given(damage=damaged_files())
 def test_file_fuzzer_every_reader_exits_0_1_2_never_a_traceback(tmp_path_factory, damage):

@@ -88,6 +88,7 @@ def model_y(state):
     return 2.6 + state.static_pose[3, 1]  # the piston's centre: its pivot plus its displacement
 
 
+@pytest.mark.slow  # 20 s of a pile under the piston: 10 s of the fast tier
 def test_a_loaded_piston_comes_to_rest_where_the_pile_pushes_back_with_its_load():
     """The pile creeps under it for about 15 s before it rests (at 1.352 m): its rough blobs rearrange once the
     piston takes its share of the contacts' velocity-level impulses (walls.react_loaded_walls). (400 N, after
