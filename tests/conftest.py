@@ -121,9 +121,9 @@ normal = [0.0, 1.0]
 """
 
 
+# scenes test_builds.py runs on their own builds, compiled before the slow tier's tests (SHARED_BUILDS): one blob
+# alone, no collider, sleeping off; two blobs meeting across the edge x = ±2 of a periodic box (test_periodic's PAIR)
 ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
-# scenes test_builds.py runs on their own builds, compiled before the slow tier's tests (SHARED_BUILDS):
-# one blob alone, no collider, sleeping off; two blobs meeting across the edge x = ±2 of a periodic box (test_periodic.py's PAIR)
 ACROSS = """[scene]
 gravity = [0.0, 0.0]
 periodic = [4.0, 3.0]
