@@ -164,6 +164,34 @@ def test_8_a_signal_while_python_imports_exits_130_without_a_traceback(tmp_path)
             assert proc.returncode in (0, 130), (wait, signum, proc.returncode, err)  # 0: done before the signal
 
 
+# What numba's _dispatcher module does when the import of numba._devicearray is cut by a signal (seen in CI,
+# SIGTERM 0.5 s into `blobsim run`): PyErr_Print, which hands the Interrupted to sys.excepthook, then a new
+# "ImportError: numba._devicearray failed to import" with no chain back to it.
+_C_CODE_CUT_BY_A_SIGNAL = """
+import os, signal, sys
+from blobcli import cli
+from blobcli.io import interrupts
+
+def run(args):
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1_000_000):
+            pass  # (the handler runs between two bytecodes)
+    except interrupts.Interrupted:
+        sys.excepthook(*sys.exc_info())
+    raise ImportError("numba._devicearray failed to import")
+
+cli.COMMANDS["run"] = run
+sys.exit(cli.main(["run", "scene.toml"]))
+"""
+
+
+def test_8_a_signal_that_c_code_turns_into_another_error_exits_130_without_a_traceback():
+    proc = subprocess.run([sys.executable, "-c", _C_CODE_CUT_BY_A_SIGNAL], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 130 and proc.stderr == "blobsim: interrupted\n", (proc.returncode, proc.stderr)
+
+
 def test_10_render_of_a_trajectory_with_no_finite_position_is_bad_input(tmp_path, good):
     bad = tmp_path / "nan.h5"
     shutil.copy(good, bad)

@@ -27,12 +27,14 @@ class Interrupted(Exception):
 
 _deferring = 0
 _pending: int | None = None
+_raised = False  # an Interrupted was raised since the last clear(): see caused_by_signal
 
 
 def _handler(signum, frame):
-    global _pending
+    global _pending, _raised
     _pending = signum  # recorded even when raised: see _quiet_interrupts
     if not _deferring:
+        _raised = True
         raise Interrupted(signum)
 
 
@@ -48,17 +50,35 @@ def _quiet_interrupts(unraisable) -> None:
 _previous_hook = sys.unraisablehook
 
 
+def _quiet_printed_interrupts(kind, value, tb) -> None:
+    """sys.excepthook: C code that prints an error and raises another (PyErr_Print: numba's _dispatcher,
+    when the import of numba._devicearray is cut by a SIGTERM, prints the Interrupted and raises
+    "ImportError: numba._devicearray failed to import") prints nothing for an Interrupted; the command then
+    stops with exit 130 (caused_by_signal). Anything else goes to the hook that was there."""
+    if not issubclass(kind, (Interrupted, KeyboardInterrupt)):
+        _previous_excepthook(kind, value, tb)
+
+
+_previous_excepthook = sys.excepthook
+
+
 def install() -> None:
-    global _previous_hook
+    global _previous_hook, _previous_excepthook
     for s in SIGNALS:
         signal.signal(s, _handler)
     if sys.unraisablehook is not _quiet_interrupts:
         _previous_hook, sys.unraisablehook = sys.unraisablehook, _quiet_interrupts
+    if sys.excepthook is not _quiet_printed_interrupts:
+        _previous_excepthook, sys.excepthook = sys.excepthook, _quiet_printed_interrupts
 
 
 def caused_by_signal(error: BaseException) -> bool:
     """Whether `error` wraps an Interrupted or KeyboardInterrupt (Python 3.11 turns one raised while a
-    class is created, in a __set_name__, into a RuntimeError caused by it)."""
+    class is created, in a __set_name__, into a RuntimeError caused by it), or came after one was raised
+    since the last clear() (C code that replaces an error by its own keeps no chain: see
+    _quiet_printed_interrupts)."""
+    if _raised:
+        return True
     seen = set()
     while error is not None and id(error) not in seen:
         if isinstance(error, (Interrupted, KeyboardInterrupt)):
@@ -82,8 +102,9 @@ def pending() -> int | None:
 
 def clear() -> None:
     """Forget a pending signal: at the start of a command, and once a run has stopped for it."""
-    global _pending
+    global _pending, _raised
     _pending = None
+    _raised = False
 
 
 @contextmanager
