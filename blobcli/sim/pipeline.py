@@ -25,6 +25,8 @@ from ..jit import build, in_disk_cache, inline_kernel, stage_kernel
 from ..scene.schema import MAX_STEP_WORK
 from .area import GAS, KOT, METHODS, SPRINGS, XPBD, area_gas, area_kot, area_springs, area_xpbd
 from .collide import (
+    CONTACTS_PER_VERTEX,
+    MAX_STRIPS,
     PAIRS_PER_BLOB,
     blob_contact_velocities,
     blob_restitution,
@@ -133,6 +135,9 @@ def _advance(steps, state, model, settings, clock):
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.bool_),
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
+    slots = CONTACTS_PER_VERTEX * (np.diff(m.offsets).max() if blob_count > 0 else 0)
+    resolve_scratch = (np.empty((MAX_STRIPS, slots, 8)), np.empty((MAX_STRIPS, slots), np.int64),
+                       np.zeros(m.inv_mass.shape[0]))  # the blob contacts' pushes (collide._resolve)
     awake_blobs = awake_count(s.awake)
     t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
@@ -223,7 +228,7 @@ def _advance(steps, state, model, settings, clock):
                     resolve_blob_contacts(s.position, s.previous, m.inv_mass, m.offsets, m.blob_of, s.awake,
                                           m.orient, m.material, s.c_edge, s.c_hit, s.c_normal, s.blob_contact_depth,
                                           s.center, s.radius, c.up_x, c.up_y, strips, it % 2 == 1, s.stick_edge,
-                                          s.stick_t, box, s.packing[0], h)
+                                          s.stick_t, box, s.packing[0], h, resolve_scratch)
                     t = _lap(clock, LAP_BLOB_RESOLVE, t)
                 if STATICS:  # one kernel per collider kind present
                     collide_statics(s.position, s.previous, m.blob_of, s.awake, m.material, m.statics, s.placed,
