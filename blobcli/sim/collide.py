@@ -49,7 +49,7 @@ visited first were favoured, and two equal frictionless blobs meeting head-on we
 their axis 0.8 s later (now 1e-14 m; tests/test_collide.py holds it to 1e-9 m). Across blobs the order
 stays Gauss-Seidel: every contact solved from the same positions (a Jacobi pass over all of
 them) kept that pair on its axis too, but left piles creeping (a 60-blob pile's centres at
-6-7 mm/s 13 s after the drop, 0.04 mm/s here): a blob's load reaches the next blob within
+6-7 mm/s 13 s after the drop, under 0.01 mm/s here): a blob's load reaches the next blob within
 one pass this way. Scenes of 64 blobs or more are cut into vertical strips (see _resolve),
 and contacts that share no blob run in parallel; smaller scenes keep one strip, so their
 blobs go in index order. Either way the order is set by the scene, not by the number of
