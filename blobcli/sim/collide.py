@@ -603,23 +603,27 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
             # ... then each, scaled by 1 / k (k at least 1), added in vertex order
             for k in range(pushes):
                 r = listed[k]
-                p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
-                e0 = c_edge[c, p]
-                b = blob_of[e0]
-                e1 = next_in_ring(e0, offsets[b], offsets[b + 1])
+                p, c, b, e0, e1 = _pushed(r, o, c_edge, blob_of, offsets)
                 _apply_push(p, e0, e1, a, b, 1.0 / max(share[p], share[e0], share[e1], 1.0), pos, inv_mass,
                             center, contact_depth, box, virial, h, push[r])
             for k in range(pushes):
                 r = listed[k]
-                p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
-                e0 = c_edge[c, p]
-                b = blob_of[e0]
-                e1 = next_in_ring(e0, offsets[b], offsets[b + 1])
+                p, c, b, e0, e1 = _pushed(r, o, c_edge, blob_of, offsets)
                 share[p] = share[e0] = share[e1] = 0.0
                 if push[r, 5] != 0.0:  # held from now on where it touches now (after a slide: where it slid to)
                     sx, sy = image(center, a, b, box)
                     stick_edge[c, p] = e0
                     stick_t[c, p] = min(max(_along(pos, e0, e1, pos[0, p] + sx, pos[1, p] + sy), 0.0), 1.0)
+
+
+@inline_kernel
+def _pushed(r, o, c_edge, blob_of, offsets):
+    """The contact of push row r of the blob whose vertices start at o: (p, c, the other blob b, the
+    edge e0 -> e1 it pushes)."""
+    p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
+    e0 = c_edge[c, p]
+    b = blob_of[e0]
+    return p, c, b, e0, next_in_ring(e0, offsets[b], offsets[b + 1])
 
 
 @inline_kernel
