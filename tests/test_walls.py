@@ -131,8 +131,8 @@ friction = 0.0
 
 def test_the_floor_under_a_loaded_column_at_rest_records_the_load_and_the_weight():
     """Four blobs stacked on a fixed floor under a 1 N loaded wall, brought to rest by drag: over the last
-    second the fixed floor records the load plus the blobs' weight (measured 0.99996 of it; 1.0003 before the
-    records held the velocity stages' impulses) and the wall its load (1.0005). (The 16-38% too much once
+    second the fixed floor records the load plus the blobs' weight (measured 0.99995 of it; 1.0003 before the
+    records held the velocity stages' impulses) and the wall its load (1.0003). (The 16-38% too much once
     suspected of a fixed collider's record was the loaded wall's: see the light loaded wall below.) The
     frictionless column buckles under the load, when depends on how symmetric the contacts keep it (at
     3 s with contacts solved one after another, at 5.5 s with each blob's solved together), and
