@@ -93,7 +93,7 @@ import numpy as np
 
 from ..jit import inline_kernel, ir_inline_kernel, kernel, stage_kernel
 from .integrate import NO_BOUNCE, bounce
-from .ring import centre_motion, next_in_ring, prev_in_ring, ring_contains, ring_radius, vertex_normal
+from .ring import centre_motion, most_vertices, next_in_ring, prev_in_ring, ring_contains, ring_radius, vertex_normal
 
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
@@ -438,9 +438,7 @@ def _detect(pos, offsets, blob_of, awake, stale, orient, center, radius, edges, 
     A contact with a blob that the vertex had a contact with before keeps that one's stick point (see
     the module docstring); the others start without. Parallel over blobs; each blob writes only its own
     vertices' slots, so the result does not depend on the number of threads."""
-    longest = 0
-    for b in range(offsets.shape[0] - 1):
-        longest = max(longest, offsets[b + 1] - offsets[b])
+    longest = most_vertices(offsets)
     for A in numba.prange(offsets.shape[0] - 1):
         if not stale[A]:
             continue

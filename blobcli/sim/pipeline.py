@@ -53,6 +53,7 @@ from .integrate import (
 from .measure import RUNAWAY, first_runaway
 from .model import Model, Params, SimulationError, State
 from .perimeter import solve_perimeter
+from .ring import most_vertices
 from .self_contact import find_self_contacts, keep_rings_simple, pairs_found, resolve_self_contacts
 from .sleep import awake_count, update_sleep
 from .statics import collide_statics
@@ -135,7 +136,7 @@ def _advance(steps, state, model, settings, clock):
         (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.bool_),
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
-    slots = CONTACTS_PER_VERTEX * (np.diff(m.offsets).max() if blob_count > 0 else 0)
+    slots = CONTACTS_PER_VERTEX * most_vertices(m.offsets)
     resolve_scratch = (np.empty((MAX_STRIPS, slots, 8)), np.empty((MAX_STRIPS, slots), np.int64),
                        np.zeros(m.inv_mass.shape[0]))  # the blob contacts' pushes (collide._resolve)
     awake_blobs = awake_count(s.awake)

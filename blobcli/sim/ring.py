@@ -22,6 +22,16 @@ def prev_in_ring(i, o, e):
 
 
 @inline_kernel
+def most_vertices(offsets):
+    """The most vertices any ring has (0 with no ring). A loop, not np.diff(offsets).max(): numba's np.diff
+    and its shape checks took ~3 s of every process's cold compile."""
+    most = 0
+    for b in range(offsets.shape[0] - 1):
+        most = max(most, offsets[b + 1] - offsets[b])
+    return most
+
+
+@inline_kernel
 def turn(pos, a, b, c):
     """The sign of the turn a → b → c: +1 left (counter-clockwise), -1 right, 0 straight on."""
     d = (pos[0, b] - pos[0, a]) * (pos[1, c] - pos[1, a]) - (pos[1, b] - pos[1, a]) * (pos[0, c] - pos[0, a])
