@@ -86,10 +86,21 @@ def test_the_json_has_every_seed_and_the_mean_with_standard_errors(tmp_path):
     m = figures["mean"]
     assert m["phi_j"] == pytest.approx(0.83) and m["z_j"] == pytest.approx(4.1)
     assert m["phi_j_sem"] == pytest.approx(0.01 / math.sqrt(3))  # std (ddof 1) 0.01 over √3
-    assert m["beta"] == pytest.approx(0.5)  # one fit over every seed's packings past onset
+    assert m["beta"] == pytest.approx(0.5)  # one fit of the seeds' mean z - z_J at each Δφ
     write_json(summary(rows[:1]), tmp_path / "one.json")
     one = json.loads((tmp_path / "one.json").read_text())  # strict JSON: no NaN
     assert one["mean"]["phi_j_sem"] is None and one["seeds"][0]["beta"] == 0.6
+
+
+def test_the_mean_exponent_fits_the_seeds_mean_excess_so_that_their_scatter_cancels():
+    # two seeds whose z - z_J scatter by ±0.03 about 0.5 (φ - φ_J)^0.5, as a seed's few contacts past onset do:
+    # the mean over the seeds at each Δφ is the law itself; pooling each seed's logs (dropping the packings whose
+    # z did not rise) read 0.29
+    def row(seed, scatter):
+        past = [{"phi": 0.83 + d, "z": 4.1 + 0.5 * d ** 0.5 + scatter} for d in (0.002, 0.005, 0.01, 0.02)]
+        return {"status": "ok", "seed": seed, "phi_j": 0.83, "z_j": 4.1, "z_j_all": 4.0, "pressure": 0.01,
+                "reduced_pressure": 2e-6, "rattlers": 3, "beta": 0.5, "past": past}
+    assert summary([row(0, 0.03), row(1, -0.03)])["mean"]["beta"] == pytest.approx(0.5, abs=1e-9)
 
 
 def test_with_friction_two_contacts_hold_a_blob():
