@@ -23,8 +23,9 @@ def prev_in_ring(i, o, e):
 
 @inline_kernel
 def most_vertices(offsets):
-    """The most vertices any ring has (0 with no ring). A loop, not np.diff(offsets).max(): numba's np.diff
-    and its shape checks took ~3 s of every process's cold compile."""
+    """The most vertices any ring has (0 with no ring). A loop, not np.diff(offsets).max(): in the step's
+    driver, numba's np.diff and its shape checks made a cold gish run cost about a fifth more CPU
+    (docs/performance.md)."""
     most = 0
     for b in range(offsets.shape[0] - 1):
         most = max(most, offsets[b + 1] - offsets[b])
