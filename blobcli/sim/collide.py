@@ -593,11 +593,10 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
                                           stick_edge, stick_t, box, push[r]):
                         listed[pushes] = r
                         pushes += 1
-                        e0 = c_edge[c, p]
-                        b = blob_of[e0]
+                        _, _, _, e0, e1 = _pushed(r, o, c_edge, blob_of, offsets)
                         share[p] += 1.0
                         share[e0] += 1.0 - push[r, 4]
-                        share[next_in_ring(e0, offsets[b], offsets[b + 1])] += push[r, 4]
+                        share[e1] += push[r, 4]
             # ... then each, scaled by 1 / k (k at least 1), added in vertex order
             for k in range(pushes):
                 r = listed[k]
