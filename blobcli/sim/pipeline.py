@@ -154,8 +154,8 @@ def _advance(steps, state, model, settings, clock):
             continue
         found = False  # blob contacts are found once per step (and again when a blob outgrows them)
         # the scene's substeps, or more where a blob would move or sag too far in one
-        substeps = substeps_for(s.position, s.velocity, m.offsets, s.awake, m.rest_perimeter, c.dt, g, c.substeps,
-                                c.most_substeps)
+        substeps = substeps_for(s.position, s.velocity, m.offsets, s.awake, m.rest_perimeter, c.dt, g, c.up_x, c.up_y,
+                                c.substeps, c.most_substeps)
         h = c.dt / substeps
         damping = math.exp(-c.damping * h)
         rest_speed = max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED)  # m/s: slower impacts never bounce (bounce)
