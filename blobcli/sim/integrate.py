@@ -23,8 +23,8 @@ IMPACT_DEPTH = 0.1  # of a blob's radius (rest perimeter / 2π): a static push t
 # shortest mean rest edge L in one, at the fastest awake blob's rigid speed at the step's start plus g dt (a contact
 # found at the substep's start would be passed through: a ring folds, a pile interpenetrates), or let gravity sag a
 # blob by more than SAG × L in one, g h² (the contacts' push back after the area stage squeezes every blob of a pile
-# by about that much each substep): h = dt / k with
-#     k = max(substeps, ⌈(v + g dt) dt / (STRIDE L)⌉, ⌈dt √(g / (SAG L))⌉),  at most `max_substeps`.
+# by about that much each substep), n g h² for the blob at the bottom of a stack of n (rows_stacked): h = dt / k with
+#     k = max(substeps, ⌈(v + g dt) dt / (STRIDE L)⌉, ⌈dt √(n g / (SAG L))⌉),  at most `max_substeps`.
 # Chosen on `blobsim stress`'s pile at dt = 1/30 s and one substep (a prototype's sweep; area drift after settling,
 # energy rise): STRIDE 0.5, SAG 0.05: 7%, 0.6%; STRIDE 1: 13%, 8%; STRIDE 0.75: 10%, 6%.
 STRIDE = 0.5
@@ -123,7 +123,8 @@ def substeps_for(pos, velocity, offsets, awake, rest_perimeter, dt, g, up_x, up_
     """How many substeps this step takes: k above, at least `least` (the scene's substeps) and at most `most`. L is
     read from the rest perimeters as they are now (a scale schedule changes them); v is each awake blob's rigid
     speed |v_c| + |ω| R, R its rest radius (rigid_motion): a vertex's own jitter in a squeezed blob is not motion
-    that passes a contact. Serial, once a step: two passes over the awake blobs' vertices."""
+    that passes a contact. Serial, once a step: two passes over the awake blobs' vertices, and with gravity one over
+    every blob's (rows_stacked)."""
     edge, fastest = math.inf, 0.0
     for b in range(offsets.shape[0] - 1):
         edge = min(edge, rest_perimeter[b] / (offsets[b + 1] - offsets[b]))
