@@ -174,21 +174,17 @@ def test_the_sag_bound_counts_the_blobs_stacked():
     then asks ⌈dt √(n g / (SAG L))⌉ for the column at rest, 5 against the row's 4 (docs/physics.md, "Substeps": the
     1,000-blob pile's ~25 rows take 6 and come to rest)."""
     def blobs(centres):
-        model, state = build(scene("[scene]\n" + "".join(
+        return build(scene("[scene]\n" + "".join(
             f"[[blob]]\ncenter = [{x}, {y}]\nradius = 0.2\nvertices = 32\n" for x, y in centres)))
-        return model, state
     dt, g = 1.0 / 60.0, 9.81
     column = blobs([(0.0, 0.2 + 0.4 * k) for k in range(16)])
     row = blobs([(0.4 * k, 0.2) for k in range(16)])
     for (model, state), up, rows in ((column, (0.0, 1.0), 16), (row, (0.0, 1.0), 1), (column, (1.0, 0.0), 1)):
         assert rows_stacked(state.position, model.offsets, model.rest_perimeter, *up) == rows
     edge = float(np.min(column[0].rest_perimeter / np.diff(column[0].offsets)))
-    for (model, state), rows in ((column, 16), (row, 1)):
-        k = substeps_for(state.position, state.velocity, model.offsets, state.awake, model.rest_perimeter, dt, g,
-                         0.0, 1.0, 4, 16)
-        assert k == max(4, math.ceil(dt * math.sqrt(rows * g / (SAG * edge))))
-    assert (substeps_for(column[1].position, column[1].velocity, column[0].offsets, column[1].awake,
-                         column[0].rest_perimeter, dt, g, 0.0, 1.0, 4, 16), k) == (5, 4)
+    taken = [substeps_for(state.position, state.velocity, model.offsets, state.awake, model.rest_perimeter, dt, g,
+                          0.0, 1.0, 4, 16) for model, state in (column, row)]
+    assert taken == [max(4, math.ceil(dt * math.sqrt(rows * g / (SAG * edge)))) for rows in (16, 1)] == [5, 4]
 
 
 def test_internal_stages_conserve_momentum():
