@@ -230,11 +230,15 @@ def image(center, a, b, box):
     (box = (L_x, L_y, γ L_y)), so that a vertex p of a meets b's vertices as p + s. The box's images
     lie at n_x e_1 + n_y e_2, e_1 = (L_x, 0), e_2 = (γ L_y, L_y) (Lees–Edwards: the row of images above
     is shifted by γ L_y; γ = 0: a plain box): n_y = round(d_y / L_y), n_x = round((d_x - n_y γ L_y) / L_x),
-    d = c_b - c_a. (0, 0) in an open world (box = (0, 0, 0)): no arithmetic, so it keeps its bits."""
+    d = c_b - c_a. (0, 0) in an open world (box = (0, 0, 0)): no arithmetic, so it keeps its bits; and,
+    without its divisions, for d within a quarter box of 0, where both roundings give n = 0 (most pairs)."""
     if box[0] == 0.0:
         return 0.0, 0.0
-    ny = math.floor((center[b, 1] - center[a, 1]) / box[1] + 0.5)
-    nx = math.floor((center[b, 0] - center[a, 0] - ny * box[2]) / box[0] + 0.5)
+    dx, dy = center[b, 0] - center[a, 0], center[b, 1] - center[a, 1]
+    if abs(dy) < 0.25 * box[1] and abs(dx) < 0.25 * box[0]:
+        return 0.0, 0.0
+    ny = math.floor(dy / box[1] + 0.5)
+    nx = math.floor((dx - ny * box[2]) / box[0] + 0.5)
     return nx * box[0] + ny * box[2], ny * box[1]
 
 
@@ -334,9 +338,10 @@ def _partners(pairs, blob_count):
 @kernel
 def _strips(center, pairs):
     """Blobs cut into vertical strips of equal width by centre x: each blob's strip, each strip's
-    blobs in index order (CSR: start, blobs), whether each blob has a partner in another strip
-    (crossing), and whether any pair spans two strips or more (far). Only blobs that cross have
-    contacts across strips: the resolution scans no other blob's contacts for them (see _resolve)."""
+    blobs in index order (CSR: start, blobs), how many strips apart each blob's farthest partner is
+    (crossing: 0, none in another strip), and whether any pair spans two strips or more (far). Only
+    blobs that cross have contacts across strips, and only those that cross two or more have far ones:
+    the resolution scans no other blob's contacts for them (see _resolve)."""
     B = center.shape[0]
     count = max(1, min(MAX_STRIPS, B // BLOBS_PER_STRIP))
     x0 = center[:, 0].min()
@@ -346,12 +351,12 @@ def _strips(center, pairs):
         for b in range(B):
             strip_of[b] = min(int((center[b, 0] - x0) / width), count - 1)
     start, blobs = _bucket(strip_of, count)
-    crossing = np.zeros(B, np.bool_)
+    crossing = np.zeros(B, np.int64)
     far = False
     for k in range(pairs.shape[0]):
-        apart = abs(strip_of[pairs[k, 0]] - strip_of[pairs[k, 1]])
-        if apart > 0:
-            crossing[pairs[k, 0]] = crossing[pairs[k, 1]] = True
+        a, b = pairs[k, 0], pairs[k, 1]
+        apart = abs(strip_of[a] - strip_of[b])
+        crossing[a], crossing[b] = max(crossing[a], apart), max(crossing[b], apart)
         far |= apart >= 2
     return strip_of, start, blobs, crossing, far
 
@@ -574,29 +579,37 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
         for k in range(first, last):
             j = first + last - 1 - k if backward else k
             a = j if far else strip_blobs[j]
-            if other != s and not far and not crossing[a]:
+            if crossing[a] < (2 if far else 1 if other != s else 0):  # (a has no contacts here)
                 continue
             o, e = offsets[a], offsets[a + 1]
-            # every push of a's contacts here, found from the same positions (push[r], r = CONTACTS_PER_VERTEX
-            # (p - o) + c, listed[:pushes] the rows that push), and how many of them each vertex is in (an
-            # edge's end by its weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...
-            pushes = 0
+            # a's contacts here, as rows r = CONTACTS_PER_VERTEX (p - o) + c in vertex order (listed[:rows]): a
+            # loop of its own, so that the vertices without one, most of a blob's, cost a load and a test (with
+            # the push's code in the same loop they cost its set-up too: over half of this stage, dev 2026-11-27)
+            # (without branches: each row is written, and kept by counting it, so that where the contacts lie
+            # costs no mispredicted jumps)
+            rows = 0
             for p in range(o, e):
                 for c in range(CONTACTS_PER_VERTEX):
-                    if c_edge[c, p] < 0:
-                        continue
-                    theirs = strip_of[blob_of[c_edge[c, p]]]
-                    r = CONTACTS_PER_VERTEX * (p - o) + c
-                    if (abs(theirs - strip_of[a]) >= 2 if far else theirs == there) and \
-                            _contact_push(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material,
-                                          c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y,
-                                          stick_edge, stick_t, box, push[r]):
-                        listed[pushes] = r
-                        pushes += 1
-                        _, _, _, e0, e1 = _pushed(r, o, c_edge, blob_of, offsets)
-                        share[p] += 1.0
-                        share[e0] += 1.0 - push[r, 4]
-                        share[e1] += push[r, 4]
+                    edge = c_edge[c, p]
+                    theirs = strip_of[blob_of[max(edge, 0)]]
+                    listed[rows] = CONTACTS_PER_VERTEX * (p - o) + c
+                    rows += (edge >= 0) & (abs(theirs - strip_of[a]) >= 2 if far else theirs == there)
+            # every push of those, found from the same positions (push[r]; listed[:pushes] the rows that push,
+            # written over the rows already read), and how many of them each vertex is in (an edge's end by its
+            # weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...
+            pushes = 0
+            for k in range(rows):
+                r = listed[k]
+                p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
+                if _contact_push(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,
+                                 c_normal, contact_depth, center, radius, up_x, up_y, stick_edge, stick_t, box,
+                                 push[r]):
+                    listed[pushes] = r
+                    pushes += 1
+                    _, _, _, e0, e1 = _pushed(r, o, c_edge, blob_of, offsets)
+                    share[p] += 1.0
+                    share[e0] += 1.0 - push[r, 4]
+                    share[e1] += push[r, 4]
             # ... then each, scaled by 1 / k (k at least 1), added in vertex order
             for k in range(pushes):
                 r = listed[k]

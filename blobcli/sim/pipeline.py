@@ -133,7 +133,7 @@ def _advance(steps, state, model, settings, clock):
     blob_count = m.offsets.shape[0] - 1
     no_pairs = np.zeros((0, 2), np.int64)
     pairs, partners, strips = no_pairs, (np.zeros(blob_count + 1, np.int64), no_pairs[:, 0], no_pairs[:, 0]), \
-        (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.bool_),
+        (np.zeros(blob_count, np.int64), np.zeros(2, np.int64), np.arange(blob_count), np.zeros(blob_count, np.int64),
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
     slots = CONTACTS_PER_VERTEX * most_vertices(m.offsets)
