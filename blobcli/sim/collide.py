@@ -759,8 +759,10 @@ def _contact_push(p, s, pos, prev, inv_mass, offsets, blob_of, awake, orient, ma
         ry = (pos[1, p] - prev[1, p]) - (1.0 - t) * (pos[1, e0] - prev[1, e0]) - t * (pos[1, e1] - prev[1, e1])
     rn = rx * nx + ry * ny
     tx, ty = rx - rn * nx, ry - rn * ny
-    slip = math.sqrt(tx * tx + ty * ty)
     cut = 0.0
+    # the slip, where there is friction (frictionless, both limits are 0 and so is the cut, whatever the slip)
+    frictional = material[a, 0] * material[blob, 0] > 0.0 or material[a, 1] * material[blob, 1] > 0.0
+    slip = math.sqrt(tx * tx + ty * ty) if frictional else 0.0
     if slip > 0.0:
         # Static: undo the whole slip; kinetic: cut it by μ_k D (|f_t| <= μ |f_n|), D the push-out summed
         # over the substep, as in the static rule and at the static colliders. (With this iteration's push

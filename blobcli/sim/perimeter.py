@@ -97,7 +97,7 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
     Σ m_i Δx_i = Δλ Σ (t_{i-1} - t_i) = 0: momentum is unchanged; C is a sum over the ring,
     so it has no order and keeps mirror symmetry."""
     C = -rest
-    weight = steepest = 0.0
+    weight = steepest = 0.0  # Σ w_i |∇_i C|², and the largest |∇_i C|² ...
     tx0, ty0, _ = _unit(pos[0, o] - pos[0, e - 1], pos[1, o] - pos[1, e - 1])
     tx, ty = tx0, ty0  # t_{i-1}
     for i in range(o, e):
@@ -107,8 +107,11 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
         C += length
         g2 = (tx - ux) ** 2 + (ty - uy) ** 2
         weight += inv_mass[i] * g2
-        steepest = max(steepest, inv_mass[i] * math.sqrt(g2))
+        steepest = max(steepest, g2)
         tx, ty = ux, uy
+    # ... whose root, times w (equal within a blob), is the largest w_i |∇_i C|: √ and the product by w never
+    # decrease, so the largest of the products is the product of the largest, to the bit (one root, not n)
+    steepest = inv_mass[o] * math.sqrt(steepest)
     if weight + alpha == 0.0:
         return
     dlam = (-C - alpha * lam[b]) / (weight + alpha)
