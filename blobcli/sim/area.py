@@ -43,17 +43,17 @@ from .ring import next_in_ring, twice_ring_area
 def _gradient_step(pos, inv_mass, o, e, scale):
     """x_i += scale w_i ∇_i A for one blob, with ∇_i from the positions before the move."""
     n = e - o
-    xl, yl = pos[0, e - 1], pos[1, e - 1]
-    x0, y0 = pos[0, o], pos[1, o]
+    x, y, w = pos[0, o:e], pos[1, o:e], inv_mass[o:e]  # (views indexed from 0: see perimeter.solve_perimeter)
+    xl, yl = x[n - 1], y[n - 1]
+    x0, y0 = x[0], y[0]
     for k in range(n):
-        i = o + k
         if k + 1 < n:
-            xn, yn = pos[0, i + 1], pos[1, i + 1]
+            xn, yn = x[k + 1], y[k + 1]
         else:
             xn, yn = x0, y0
-        sx, sy = pos[0, i], pos[1, i]
-        pos[0, i] = sx + scale * 0.5 * inv_mass[i] * (yn - yl)
-        pos[1, i] = sy + scale * 0.5 * inv_mass[i] * (xl - xn)
+        sx, sy = x[k], y[k]
+        x[k] = sx + scale * 0.5 * w[k] * (yn - yl)
+        y[k] = sy + scale * 0.5 * w[k] * (xl - xn)
         xl, yl = sx, sy
 
 
@@ -70,20 +70,20 @@ def area_kot(pos, inv_mass, offsets, awake, target_area):
 def project_area(pos, inv_mass, o, e, target):
     """Ring o..e moved along x_i += h w_i ∇_i A to the area `target` (see the module docstring)."""
     n = e - o
+    x, y, w = pos[0, o:e], pos[1, o:e], inv_mass[o:e]  # (views indexed from 0: see perimeter.solve_perimeter)
     # Pass 1: a, b, c, carrying p_i from one edge to the next.
-    xl, yl = pos[0, e - 1], pos[1, e - 1]  # x_{i-1}
-    x1, y1 = pos[0, o + 1], pos[1, o + 1]
-    px = 0.5 * inv_mass[o] * (y1 - yl)
-    py = 0.5 * inv_mass[o] * (xl - x1)
+    xl, yl = x[n - 1], y[n - 1]  # x_{i-1}
+    x1, y1 = x[1], y[1]
+    px = 0.5 * w[0] * (y1 - yl)
+    py = 0.5 * w[0] * (xl - x1)
     a = b = c = 0.0
-    for k in range(n):
-        i = o + k
-        j = i + 1 if k + 1 < n else i + 1 - n  # o + (k + 1) % n, without dividing
-        jj = i + 2 if k + 2 < n else i + 2 - n
-        xi, yi = pos[0, i], pos[1, i]
-        xj, yj = pos[0, j], pos[1, j]
-        qx = 0.5 * inv_mass[j] * (pos[1, jj] - yi)  # p_{i+1}
-        qy = 0.5 * inv_mass[j] * (xi - pos[0, jj])
+    for i in range(n):
+        j = i + 1 if i + 1 < n else i + 1 - n  # (i + 1) % n, without dividing
+        jj = i + 2 if i + 2 < n else i + 2 - n
+        xi, yi = x[i], y[i]
+        xj, yj = x[j], y[j]
+        qx = 0.5 * w[j] * (y[jj] - yi)  # p_{i+1}
+        qy = 0.5 * w[j] * (xi - x[jj])
         a += px * qy - py * qx
         b += (xi * qy - yi * qx) + (px * yj - py * xj)
         c += xi * yj - yi * xj

@@ -585,15 +585,15 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
             # a's contacts here, as rows r = CONTACTS_PER_VERTEX (p - o) + c in vertex order (listed[:rows]): a
             # loop of its own, so that the vertices without one, most of a blob's, cost a load and a test (with
             # the push's code in the same loop they cost its set-up too: over half of this stage, dev 2026-11-27)
-            # (without branches: each row is written, and kept by counting it, so that where the contacts lie
-            # costs no mispredicted jumps)
             rows = 0
             for p in range(o, e):
                 for c in range(CONTACTS_PER_VERTEX):
                     edge = c_edge[c, p]
-                    theirs = strip_of[blob_of[max(edge, 0)]]
-                    listed[rows] = CONTACTS_PER_VERTEX * (p - o) + c
-                    rows += (edge >= 0) & (abs(theirs - strip_of[a]) >= 2 if far else theirs == there)
+                    if edge >= 0:
+                        theirs = strip_of[blob_of[edge]]
+                        if abs(theirs - strip_of[a]) >= 2 if far else theirs == there:
+                            listed[rows] = CONTACTS_PER_VERTEX * (p - o) + c
+                            rows += 1
             # every push of those, found from the same positions (push[r]; listed[:pushes] the rows that push,
             # written over the rows already read), and how many of them each vertex is in (an edge's end by its
             # weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...

@@ -33,10 +33,10 @@ def solve_distance(pos, inv_mass, i, j, rest, lam, k, alpha):
 
 
 @inline_kernel
-def edge_step(pos, i, j, rest, lam, alpha, inv_weight):
+def edge_step(x, y, i, j, rest, lam, alpha, inv_weight):
     """Δλ n of one XPBD step of C = |x_j - x_i| - rest (see above), with multiplier lam[i] and
-    inv_weight = 1 / (w_i + w_j + α̃)."""
-    dx, dy = pos[0, j] - pos[0, i], pos[1, j] - pos[1, i]
+    inv_weight = 1 / (w_i + w_j + α̃); x, y: the ring's coordinates."""
+    dx, dy = x[j] - x[i], y[j] - y[i]
     length = math.sqrt(dx * dx + dy * dy)
     if length == 0.0:
         return 0.0, 0.0
@@ -62,31 +62,39 @@ def solve_perimeter(pos, inv_mass, offsets, awake, rest_length, rest_total, comp
     # straight onto a floor roll 0.1 m aside. One pass round the ring: edge i's correction is
     # computed before vertex i moves, and the closing edge's first, before vertex o does.
     # Then the ring's total length, as one constraint (see _solve_total_length).
+    # Each ring's arrays are taken as views indexed from 0 (x[k] = pos[0, o + k]): k runs over range(n), so
+    # LLVM knows k >= 0 and drops numba's handling of negative indices, which was a third of this loop's
+    # instructions (the same arithmetic in the same order: the same bits).
     unit = np.empty((2, pos.shape[1]))  # its unit edge vectors t_i, each blob in its own columns
     for b in numba.prange(offsets.shape[0] - 1):
         if not awake[b]:
             continue
         o, e = offsets[b], offsets[b + 1]
+        n = e - o
+        x, y, rest, ring_lam = pos[0, o:e], pos[1, o:e], rest_length[o:e], lam[o:e]
+        w = inv_mass[o]  # vertex masses are equal within a blob
         alpha = compliance[b] / (h * h)
-        inv_weight = 1.0 / (inv_mass[o] + inv_mass[o] + alpha)  # vertex masses are equal within a blob
+        inv_weight = 1.0 / (w + w + alpha)
         for _ in range(SWEEPS):
-            last_x, last_y = edge_step(pos, e - 1, o, rest_length[e - 1], lam, alpha, inv_weight)
-            before_x, before_y = last_x, last_y  # the correction of the edge ending at vertex i
-            for i in range(o, e):
-                if i < e - 1:
-                    gx, gy = edge_step(pos, i, i + 1, rest_length[i], lam, alpha, inv_weight)
+            last_x, last_y = edge_step(x, y, n - 1, 0, rest[n - 1], ring_lam, alpha, inv_weight)
+            before_x, before_y = last_x, last_y  # the correction of the edge ending at vertex k
+            for k in range(n):
+                if k < n - 1:
+                    gx, gy = edge_step(x, y, k, k + 1, rest[k], ring_lam, alpha, inv_weight)
                 else:
                     gx, gy = last_x, last_y
-                pos[0, i] += inv_mass[i] * (before_x - gx)
-                pos[1, i] += inv_mass[i] * (before_y - gy)
+                x[k] += w * (before_x - gx)
+                y[k] += w * (before_y - gy)
                 before_x, before_y = gx, gy
-        _solve_total_length(pos, inv_mass, o, e, rest_total[b], compliance[b] * (e - o) / (h * h), total_lam, b, unit)
+        _solve_total_length(x, y, w, rest_total[b], compliance[b] * n / (h * h), total_lam, b, unit[0, o:e],
+                            unit[1, o:e])
 
 
 @inline_kernel
-def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
+def _solve_total_length(x, y, w, rest, alpha, lam, b, unit_x, unit_y):
     """One XPBD step of the ring's total length, C = Σ |e_k| - Σ L_k, with α̃ = n α / h² (the
-    compliance of its n edges in series) and multiplier lam[b]; unit[:, o:e] is scratch for the t_i.
+    compliance of its n edges in series) and multiplier lam[b]; x, y: the ring's coordinates, w its
+    vertices' inverse mass; unit_x, unit_y: scratch for the t_i.
 
     A pass over the edges moves a correction one edge along the ring, so a ring of n vertices
     needs O(n) iterations to resist a stretch spread over all of it: under its own weight a
@@ -96,22 +104,23 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
         Δλ = (-C - α̃ λ) / (Σ w_i |∇_i C|² + α̃),   Δx_i = w_i Δλ ∇_i C.
     Σ m_i Δx_i = Δλ Σ (t_{i-1} - t_i) = 0: momentum is unchanged; C is a sum over the ring,
     so it has no order and keeps mirror symmetry."""
+    n = x.shape[0]
     C = -rest
     weight = steepest = 0.0  # Σ w_i |∇_i C|², and the largest |∇_i C|² ...
-    tx0, ty0, _ = _unit(pos[0, o] - pos[0, e - 1], pos[1, o] - pos[1, e - 1])
+    tx0, ty0, _ = _unit(x[0] - x[n - 1], y[0] - y[n - 1])
     tx, ty = tx0, ty0  # t_{i-1}
-    for i in range(o, e):
-        j = i + 1 if i + 1 < e else o
-        ux, uy, length = _unit(pos[0, j] - pos[0, i], pos[1, j] - pos[1, i])
-        unit[0, i], unit[1, i] = ux, uy
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        ux, uy, length = _unit(x[j] - x[i], y[j] - y[i])
+        unit_x[i], unit_y[i] = ux, uy
         C += length
         g2 = (tx - ux) ** 2 + (ty - uy) ** 2
-        weight += inv_mass[i] * g2
+        weight += w * g2
         steepest = max(steepest, g2)
         tx, ty = ux, uy
-    # ... whose root, times w (equal within a blob), is the largest w_i |∇_i C|: √ and the product by w never
-    # decrease, so the largest of the products is the product of the largest, to the bit (one root, not n)
-    steepest = inv_mass[o] * math.sqrt(steepest)
+    # ... whose root, times w, is the largest w |∇_i C|: √ and the product by w never decrease, so the
+    # largest of the products is the product of the largest, to the bit (one root, not n)
+    steepest = w * math.sqrt(steepest)
     if weight + alpha == 0.0:
         return
     dlam = (-C - alpha * lam[b]) / (weight + alpha)
@@ -122,17 +131,17 @@ def _solve_total_length(pos, inv_mass, o, e, rest, alpha, lam, b, unit):
     # of a ring's acceleration with 0.2, 0.909 with 0.4) and a squashed blob re-rounds slowly;
     # too large and the over-pressured blob rings (kinetic energy still 4 mJ after 4 s with
     # 0.5, 1 J peaks with 1.0; at rest and asleep by 1.5 s with 0.4).
-    most = TOTAL_STEP * rest / (e - o)
+    most = TOTAL_STEP * rest / n
     if abs(dlam) * steepest > most:
         dlam = math.copysign(most / steepest, dlam)
     lam[b] += dlam
     # Δx_i needs t_{i-1} and t_i at the positions C was measured at: the t_i kept from the sum above
     # (recomputing them, a square root and a division per edge, cost 11% of this stage).
     tx, ty = tx0, ty0
-    for i in range(o, e):
-        ux, uy = unit[0, i], unit[1, i]
-        pos[0, i] += inv_mass[i] * dlam * (tx - ux)
-        pos[1, i] += inv_mass[i] * dlam * (ty - uy)
+    for i in range(n):
+        ux, uy = unit_x[i], unit_y[i]
+        x[i] += w * dlam * (tx - ux)
+        y[i] += w * dlam * (ty - uy)
         tx, ty = ux, uy
 
 
