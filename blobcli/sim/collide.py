@@ -531,9 +531,10 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
              center, radius, up_x, up_y, strip_of, strip_start, strip_blobs, crossing, far, backward, stick_edge,
              stick_t, box, virial, h, scratch):
     """The contacts blob by blob (each blob's together: see the module docstring), in parallel where
-    they share no blob. scratch: (push (tasks, slots, 8), listed (tasks, slots) int64, share (N,)),
-    one row of the first two for each parallel task (slots: CONTACTS_PER_VERTEX times the most
-    vertices a blob has), share all zero between blobs (see _resolve_between).
+    they share no blob. scratch: (push (tasks, slots, 8), listed (tasks, slots) int64, share (N,),
+    rows (2, CONTACTS_PER_VERTEX N) int64, row_count (B,) int64): one row of the first two for each
+    parallel task (slots: CONTACTS_PER_VERTEX times the most vertices a blob has), share all zero
+    between blobs (see _resolve_between); rows and row_count, each blob's contacts (see below).
 
     A contact moves only its own two blobs, so contacts within different strips are
     independent, and so are contacts across the strip boundaries s|s+1 and s+2|s+3. Order:
@@ -546,6 +547,21 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
     result is the same for any number of threads. Contacts across strips are looked for only where
     the pairs say there are some (crossing, far: see _strips)."""
     strips = strip_start.shape[0] - 1
+    # Each blob's contacts, read once here for the five phases (its slots scanned in each phase instead were
+    # over a quarter of this stage, dev 2026-11-27): rows[0, CONTACTS_PER_VERTEX o + k], k < row_count[a],
+    # the slot r = CONTACTS_PER_VERTEX (p - o) + c of a's k-th contact, in vertex order, rows[1, ...] the
+    # strip of the blob it touches (a contact follows the other blob's ring, never to another blob: both
+    # hold for the whole stage).
+    rows, row_count = scratch[3], scratch[4]
+    for a in numba.prange(offsets.shape[0] - 1):
+        o, e = offsets[a], offsets[a + 1]
+        k = CONTACTS_PER_VERTEX * o
+        for p in range(o, e):
+            for c in range(CONTACTS_PER_VERTEX):
+                if c_edge[c, p] >= 0:
+                    rows[0, k], rows[1, k] = CONTACTS_PER_VERTEX * (p - o) + c, strip_of[blob_of[c_edge[c, p]]]
+                    k += 1
+        row_count[a] = k - CONTACTS_PER_VERTEX * o
     # phase 0 is (1), phases 1-4 are (2) then (3), each even s then odd s: one prange loop with one call of
     # the inlined contact code (jit.ir_inline_kernel), so that it is typed and compiled once (a loop per
     # phase compiled it once each: 25 s of a cold compile in the parallel build; the far contacts' loop of
@@ -558,7 +574,7 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
             _resolve_between(phase == 0, s, s + shift, pos, prev, inv_mass, offsets, blob_of, awake, orient,
                              material, c_edge, c_hit, c_normal, contact_depth, center, radius, up_x, up_y, strip_of,
                              strip_start, strip_blobs, crossing, backward, stick_edge, stick_t, box, virial, h,
-                             (scratch[0][q], scratch[1][q], scratch[2]))
+                             (scratch[0][q], scratch[1][q], scratch[2], rows, row_count))
 
 
 @ir_inline_kernel
@@ -569,9 +585,9 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
     those of a vertex in `other` with an edge in s (only crossing blobs have such contacts);
     backward: each strip's blobs in reverse order. far: instead, the contacts across strips two or
     more apart, blobs in index order. A blob's contacts go together, Jacobi (see _resolve); scratch:
-    (push, listed, share), see there. (One argument for three: a call of over 30 arguments is
-    compiled by CPython as f(*args), which numba cannot inline.)"""
-    push, listed, share = scratch
+    (push, listed, share, rows, row_count), see there. (One argument for five: a call of over 30
+    arguments is compiled by CPython as f(*args), which numba cannot inline.)"""
+    push, listed, share, rows, row_count = scratch
     blob_count = offsets.shape[0] - 1
     for side in range(1 if other == s or far else 2):
         here, there = (s, other) if side == 0 else (other, s)
@@ -581,24 +597,21 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
             a = j if far else strip_blobs[j]
             if crossing[a] < (2 if far else 1 if other != s else 0):  # (a has no contacts here)
                 continue
-            o, e = offsets[a], offsets[a + 1]
-            # a's contacts here, as rows r = CONTACTS_PER_VERTEX (p - o) + c in vertex order (listed[:rows]): a
-            # loop of its own, so that the vertices without one, most of a blob's, cost a load and a test (with
-            # the push's code in the same loop they cost its set-up too: over half of this stage, dev 2026-11-27)
-            rows = 0
-            for p in range(o, e):
-                for c in range(CONTACTS_PER_VERTEX):
-                    edge = c_edge[c, p]
-                    if edge >= 0:
-                        theirs = strip_of[blob_of[edge]]
-                        if abs(theirs - strip_of[a]) >= 2 if far else theirs == there:
-                            listed[rows] = CONTACTS_PER_VERTEX * (p - o) + c
-                            rows += 1
-            # every push of those, found from the same positions (push[r]; listed[:pushes] the rows that push,
-            # written over the rows already read), and how many of them each vertex is in (an edge's end by its
-            # weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...
+            o = offsets[a]
+            # a's contacts here, their slots r in vertex order (listed[:here_rows]): a loop of their own (with
+            # the push's code in the same loop, each slot looked at cost its set-up: over half of this stage,
+            # dev 2026-11-27) ...
+            here_rows = 0
+            for m in range(CONTACTS_PER_VERTEX * o, CONTACTS_PER_VERTEX * o + row_count[a]):
+                theirs = rows[1, m]
+                if abs(theirs - strip_of[a]) >= 2 if far else theirs == there:
+                    listed[here_rows] = rows[0, m]
+                    here_rows += 1
+            # ... every push of those, found from the same positions (push[r]; listed[:pushes] the rows that
+            # push, written over the rows already read), and how many of them each vertex is in (an edge's end by
+            # its weight in the push, 1 - t or t: a mirror image of the pushes counts the same) ...
             pushes = 0
-            for k in range(rows):
+            for k in range(here_rows):
                 r = listed[k]
                 p, c = o + r // CONTACTS_PER_VERTEX, r % CONTACTS_PER_VERTEX
                 if _contact_push(p, c, pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_edge, c_hit,

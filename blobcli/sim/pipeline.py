@@ -137,8 +137,10 @@ def _advance(steps, state, model, settings, clock):
          False)
     pair_impact = np.zeros((0, 4))  # the impact records of this substep's pairs (integrate.bounce)
     slots = CONTACTS_PER_VERTEX * most_vertices(m.offsets)
-    resolve_scratch = (np.empty((MAX_STRIPS, slots, 8)), np.empty((MAX_STRIPS, slots), np.int64),
-                       np.zeros(m.inv_mass.shape[0]))  # the blob contacts' pushes (collide._resolve)
+    vertices = m.inv_mass.shape[0]
+    resolve_scratch = (np.empty((MAX_STRIPS, slots, 8)), np.empty((MAX_STRIPS, slots), np.int64), np.zeros(vertices),
+                       np.empty((2, CONTACTS_PER_VERTEX * vertices), np.int64),
+                       np.empty(blob_count, np.int64))  # the blob contacts' pushes and rows (collide._resolve)
     awake_blobs = awake_count(s.awake)
     t = _lap(clock, NO_LAP, 0.0)
     g = math.sqrt(c.gx * c.gx + c.gy * c.gy)
