@@ -547,11 +547,11 @@ def _resolve(pos, prev, inv_mass, offsets, blob_of, awake, orient, material, c_e
     result is the same for any number of threads. Contacts across strips are looked for only where
     the pairs say there are some (crossing, far: see _strips)."""
     strips = strip_start.shape[0] - 1
-    # Each blob's contacts, read once here for the five phases (its slots scanned in each phase instead were
-    # over a quarter of this stage, dev 2026-11-27): rows[0, CONTACTS_PER_VERTEX o + k], k < row_count[a],
-    # the slot r = CONTACTS_PER_VERTEX (p - o) + c of a's k-th contact, in vertex order, rows[1, ...] the
-    # strip of the blob it touches (a contact follows the other blob's ring, never to another blob: both
-    # hold for the whole stage).
+    # Each blob's contacts, read once here for the five phases (its slots scanned in each phase instead, a blob
+    # in two or three of them, were a quarter of this stage, dev 2026-11-27): rows[0, CONTACTS_PER_VERTEX o + k],
+    # k < row_count[a], the slot r = CONTACTS_PER_VERTEX (p - o) + c of a's k-th contact, in vertex order, and
+    # rows[1, ...] the strip of the blob it touches (a contact follows the other blob's ring, never to another
+    # blob: both hold for the whole stage).
     rows, row_count = scratch[3], scratch[4]
     for a in numba.prange(offsets.shape[0] - 1):
         o, e = offsets[a], offsets[a + 1]
@@ -598,9 +598,9 @@ def _resolve_between(far, s, other, pos, prev, inv_mass, offsets, blob_of, awake
             if crossing[a] < (2 if far else 1 if other != s else 0):  # (a has no contacts here)
                 continue
             o = offsets[a]
-            # a's contacts here, their slots r in vertex order (listed[:here_rows]): a loop of their own (with
-            # the push's code in the same loop, each slot looked at cost its set-up: over half of this stage,
-            # dev 2026-11-27) ...
+            # a's contacts here, their slots r in vertex order (listed[:here_rows]), from its list (see _resolve;
+            # a loop of their own: with the push's code in the loop over a blob's slots, each slot looked at, most
+            # of them empty, cost the push's set-up, over half of this stage, dev 2026-11-27) ...
             here_rows = 0
             for m in range(CONTACTS_PER_VERTEX * o, CONTACTS_PER_VERTEX * o + row_count[a]):
                 theirs = rows[1, m]
