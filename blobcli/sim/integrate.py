@@ -42,10 +42,11 @@ def rigid_motion(pos, vel, o, e):
     ∂/∂v_c Σ |v - v_c - ω ẑ × r|² = 0 gives the mean (Σ r = 0), ∂/∂ω gives ω I = L. The residual
     v - v_c - ω ẑ × r, the deformation, carries neither momentum nor angular momentum."""
     cx, cy, vx, vy = ring_means(pos, vel, o, e)
+    x, y, u, v = pos[0, o:e], pos[1, o:e], vel[0, o:e], vel[1, o:e]  # (views: perimeter.solve_perimeter)
     L = I = 0.0
-    for i in range(o, e):
-        rx, ry = pos[0, i] - cx, pos[1, i] - cy
-        L += rx * (vel[1, i] - vy) - ry * (vel[0, i] - vx)
+    for i in range(e - o):
+        rx, ry = x[i] - cx, y[i] - cy
+        L += rx * (v[i] - vy) - ry * (u[i] - vx)
         I += rx * rx + ry * ry
     return cx, cy, vx, vy, L / I if I > 0.0 else 0.0
 
@@ -60,11 +61,12 @@ def damp_deformation(pos, vel, offsets, awake, factor):
             continue
         o, e = offsets[b], offsets[b + 1]
         cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
-        for i in range(o, e):
-            rigid_x = vx - w * (pos[1, i] - cy)
-            rigid_y = vy + w * (pos[0, i] - cx)
-            vel[0, i] = rigid_x + (vel[0, i] - rigid_x) * factor
-            vel[1, i] = rigid_y + (vel[1, i] - rigid_y) * factor
+        x, y, u, v = pos[0, o:e], pos[1, o:e], vel[0, o:e], vel[1, o:e]  # (views: perimeter.solve_perimeter)
+        for i in range(e - o):
+            rigid_x = vx - w * (y[i] - cy)
+            rigid_y = vy + w * (x[i] - cx)
+            u[i] = rigid_x + (u[i] - rigid_x) * factor
+            v[i] = rigid_y + (v[i] - rigid_y) * factor
 
 
 @stage_kernel
@@ -75,9 +77,11 @@ def drag_motion(vel, offsets, awake, factor):
     same way, or by FIRE). Momentum decays with it: the drag is a force from outside, the medium."""
     for b in numba.prange(offsets.shape[0] - 1):
         if awake[b]:
-            for i in range(offsets[b], offsets[b + 1]):
-                vel[0, i] *= factor
-                vel[1, i] *= factor
+            # (views indexed from 0: perimeter.solve_perimeter)
+            u, v = vel[0, offsets[b]:offsets[b + 1]], vel[1, offsets[b]:offsets[b + 1]]
+            for i in range(u.shape[0]):
+                u[i] *= factor
+                v[i] *= factor
 
 
 @stage_kernel
@@ -159,26 +163,30 @@ def predict(pos, prev, vel, lam, contact_depth, offsets, awake, predicted, gx, g
         if not awake[b]:
             continue
         o, e = offsets[b], offsets[b + 1]
-        for i in range(o, e):
-            prev[0, i] = pos[0, i]
-            prev[1, i] = pos[1, i]
-            vel[0, i] += gx * h
-            vel[1, i] += gy * h
-            lam[i] = 0.0  # XPBD multipliers accumulate over one substep's iterations only
-            contact_depth[i] = 0.0
+        n = e - o
+        # the ring's arrays as views indexed from 0 (perimeter.solve_perimeter)
+        x, y, u, v, x_prev, y_prev = pos[0, o:e], pos[1, o:e], vel[0, o:e], vel[1, o:e], prev[0, o:e], prev[1, o:e]
+        ring_lam, depth = lam[o:e], contact_depth[o:e]
+        for i in range(n):
+            x_prev[i] = x[i]
+            y_prev[i] = y[i]
+            u[i] += gx * h
+            v[i] += gy * h
+            ring_lam[i] = 0.0  # XPBD multipliers accumulate over one substep's iterations only
+            depth[i] = 0.0
         cx, cy, vx, vy, w = rigid_motion(pos, vel, o, e)
         kinetic = 0.0
-        for i in range(o, e):
-            kinetic += vel[0, i] ** 2 + vel[1, i] ** 2
-        predicted[b, 0], predicted[b, 1], predicted[b, 2], predicted[b, 3] = vx, vy, 0.5 * kinetic / (e - o), \
+        for i in range(n):
+            kinetic += u[i] ** 2 + v[i] ** 2
+        predicted[b, 0], predicted[b, 1], predicted[b, 2], predicted[b, 3] = vx, vy, 0.5 * kinetic / n, \
             -(gx * cx + gy * cy)
         cos, sin = math.cos(w * h), math.sin(w * h)
-        for i in range(o, e):
-            rx, ry = pos[0, i] - cx, pos[1, i] - cy
-            dx = vel[0, i] - vx + w * ry  # the deformation velocity v - v_c - ω ẑ × r
-            dy = vel[1, i] - vy - w * rx
-            pos[0, i] = cx + h * vx + cos * rx - sin * ry + h * dx
-            pos[1, i] = cy + h * vy + sin * rx + cos * ry + h * dy
+        for i in range(n):
+            rx, ry = x[i] - cx, y[i] - cy
+            dx = u[i] - vx + w * ry  # the deformation velocity v - v_c - ω ẑ × r
+            dy = v[i] - vy - w * rx
+            x[i] = cx + h * vx + cos * rx - sin * ry + h * dx
+            y[i] = cy + h * vy + sin * rx + cos * ry + h * dy
 
 
 @inline_kernel
@@ -258,17 +266,19 @@ def update_velocities(pos, prev, offsets, awake, vel, contact_normal, contact_de
             continue
         o, e = offsets[b], offsets[b + 1]
         cx, cy, px, py = ring_means(pos, prev, o, e)
+        # the ring's arrays as views indexed from 0 (perimeter.solve_perimeter)
+        x, y, x_prev, y_prev, u, v = pos[0, o:e], pos[1, o:e], prev[0, o:e], prev[1, o:e], vel[0, o:e], vel[1, o:e]
         cross = dot = 0.0
-        for i in range(o, e):
-            rx, ry, qx, qy = pos[0, i] - cx, pos[1, i] - cy, prev[0, i] - px, prev[1, i] - py
+        for i in range(e - o):
+            rx, ry, qx, qy = x[i] - cx, y[i] - cy, x_prev[i] - px, y_prev[i] - py
             cross += qx * ry - qy * rx
             dot += qx * rx + qy * ry
         theta = math.atan2(cross, dot)
         cos, sin, w = math.cos(theta), math.sin(theta), theta * inv_h
-        for i in range(o, e):
-            rx, ry, qx, qy = pos[0, i] - cx, pos[1, i] - cy, prev[0, i] - px, prev[1, i] - py
-            vel[0, i] = (cx - px) * inv_h - w * ry + (rx - (cos * qx - sin * qy)) * inv_h
-            vel[1, i] = (cy - py) * inv_h + w * rx + (ry - (sin * qx + cos * qy)) * inv_h
+        for i in range(e - o):
+            rx, ry, qx, qy = x[i] - cx, y[i] - cy, x_prev[i] - px, y_prev[i] - py
+            u[i] = (cx - px) * inv_h - w * ry + (rx - (cos * qx - sin * qy)) * inv_h
+            v[i] = (cy - py) * inv_h + w * rx + (ry - (sin * qx + cos * qy)) * inv_h
     for i in numba.prange(pos.shape[1]):
         D = contact_depth[i]
         if D == 0.0:

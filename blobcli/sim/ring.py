@@ -49,13 +49,14 @@ def vertex_normal(pos, orient, i, o, e):
 @inline_kernel
 def ring_means(a, b, o, e):
     """The means over ring o..e of two (2, N) arrays (positions, velocities): (ā_x, ā_y, b̄_x, b̄_y)."""
-    ax = ay = bx = by = 0.0
-    for i in range(o, e):
-        ax += a[0, i]
-        ay += a[1, i]
-        bx += b[0, i]
-        by += b[1, i]
     n = e - o
+    a0, a1, b0, b1 = a[0, o:e], a[1, o:e], b[0, o:e], b[1, o:e]  # views indexed from 0 (perimeter.solve_perimeter)
+    ax = ay = bx = by = 0.0
+    for i in range(n):
+        ax += a0[i]
+        ay += a1[i]
+        bx += b0[i]
+        by += b1[i]
     return ax / n, ay / n, bx / n, by / n
 
 
