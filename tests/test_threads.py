@@ -19,7 +19,7 @@ def auto_choice(monkeypatch, most=2, free=None):
     """An auto choice on `most` threads; `free`: the free cores it sees (None: it cannot see the load)."""
     monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
     monkeypatch.setattr(threads_module, "available", lambda: most)
-    monkeypatch.setattr(threads_module, "free_cores", lambda: free)
+    monkeypatch.setattr(threads_module, "free_cores", lambda ours=1: free)
     return ThreadChoice(None, parallel=True)
 
 
@@ -110,10 +110,83 @@ def test_with_the_load_in_view_it_probes_only_what_can_win(monkeypatch):
         assert choice.current == 1
         choice.next_probe = 0.0
         assert choice.plan(80) == (1, 80) and choice.interval == 2 * PROBE_SECONDS  # no probe: asks again later
-        monkeypatch.setattr(threads_module, "free_cores", lambda: 2)  # the core is free again
+        monkeypatch.setattr(threads_module, "free_cores", lambda ours=1: 2)  # the core is free again
         choice.next_probe = 0.0
         assert choice.plan(80) == (2, 10)  # a probe of both threads
     with auto_choice(monkeypatch, free=2) as choice:  # alone: all threads, and no probe of one
         assert choice.current == 2
         choice.next_probe = 0.0
         assert choice.plan(80) == (2, 80)
+
+
+def test_a_call_too_short_to_time_is_not_a_probe(monkeypatch):
+    with auto_choice(monkeypatch) as choice:
+        choice.next_probe = 0.0
+        assert choice.plan(1) == (2, 1) and choice.plan(7) == (2, 7)  # one step timed alone is noise
+        assert choice.plan(8) == (1, 1)  # the first call long enough: the probe that was due
+
+
+def test_the_load_counts_out_the_runs_own_threads(monkeypatch):
+    """/proc/loadavg's running count includes the caller and, right after a parallel region, the pool's
+    spinning threads: on two threads alone the run must not see itself as a crowd."""
+    class Loadavg:
+        def __init__(self, *args):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            pass
+
+        def read(self):
+            return "1.00 1.00 1.00 3/200 123\n"
+    monkeypatch.setattr(threads_module, "open", Loadavg, raising=False)
+    monkeypatch.setattr(threads_module.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    assert threads_module.free_cores(1) == 0  # two others running: no core free
+    assert threads_module.free_cores(2) == 1  # our second thread and one other
+    assert threads_module.free_cores(3) == 2
+
+
+def test_a_local_workers_pool_adapts_and_a_users_count_stays_fixed(monkeypatch):
+    from blobcli.tools.executor import default_workers, worker_threads
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    monkeypatch.delenv(threads_module.SHARED_POOL, raising=False)
+    env = worker_threads()
+    assert env == {"NUMBA_NUM_THREADS": str(default_workers()), threads_module.SHARED_POOL: "1"}
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    monkeypatch.setattr(threads_module, "available", lambda: 2)
+    assert ThreadChoice(None, parallel=True).adaptive  # a worker's run: adapts within the pool
+    monkeypatch.delenv(threads_module.SHARED_POOL)
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "1")  # the user's own count
+    assert worker_threads() == {"NUMBA_NUM_THREADS": "1"}
+
+
+def test_local_workers_keep_the_allocators_defaults_and_no_profiler():
+    """Dask's MALLOC_TRIM_THRESHOLD_ made every one of the step's temporaries of 128 KiB or more come
+    from new pages (17,000 page faults a second in a jam's worker); its profiler took the core 100 times
+    a second (tools/executor.py)."""
+    from blobcli.tools.executor import run_tasks
+
+    def inside():
+        import os
+
+        import dask
+        return (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS"),
+                os.environ.get(threads_module.SHARED_POOL), dask.config.get("distributed.worker.profile.enabled"))
+    [(_, seen)] = list(run_tasks(inside, [()], workers=1))
+    assert seen == (None, "1", "1", False)
+
+
+def test_the_cores_share_is_judged_over_calls_not_one_short_call(monkeypatch):
+    with auto_choice(monkeypatch) as choice:
+        choice.next_probe = float("inf")
+        calls = [(0.005, 0.95)] * 10 + [(0.017, 0.80)] + [(0.005, 0.95)] * 7  # one hiccup among 5-ms steps
+        for seconds, share in calls:
+            choice.observe(2, 1, seconds, cpu_seconds=2 * seconds * share)
+        assert choice.current == 2
+        for _ in range(20):  # beside a busy process: 0.74 of a core per thread, call after call
+            threads, steps = choice.plan(1)
+            choice.observe(threads, steps, 0.005, cpu_seconds=threads * 0.005 * 0.74)
+        assert choice.current == 1 and choice.switches == 1

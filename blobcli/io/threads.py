@@ -7,11 +7,13 @@ threads is descheduled for a time slice at some barrier and the other waits it o
 step's regions: two 60-blob runs started together took 4.8, 8.1 and 49 s each against 2.0 s alone
 (dev machine, 2026-11-25). One thread has no barrier to wait at.
 
-So an auto run (no --threads, no NUMBA_NUM_THREADS) watches its threads and its speed:
+So an auto run (no --threads, no NUMBA_NUM_THREADS of the user's) watches its threads and its speed:
 - after each call on several threads it compares the process's CPU time with the wall time: threads
   that get their cores use one core each (waiting threads spin), 1.99 cores for two threads on the
-  idle machine; beside a busy-loop process, 1.48. Below CPU_SHARE of a core per thread, the run
-  falls back to one thread at once;
+  idle machine; beside a busy-loop process, 1.48. Below CPU_SHARE of a core per thread, over calls
+  of SHARE_SECONDS or more in all, the run falls back to one thread at once (one call of one step is
+  too short to judge: a jam's 5-ms step on two threads now and then took 10-20 ms at 0.8 of a core
+  per thread, between steps of 0.95);
 - now and then it runs one short call on the other thread count (all of numba's threads, or one),
   and whichever gave the faster step runs until the next probe. While probes keep losing they come
   less often (the interval doubles, up to PROBE_MAX_SECONDS); a step that suddenly slows brings the
@@ -35,12 +37,13 @@ import numba
 FIRST_PROBE_SECONDS = 0.1  # wall time before the first probe ...
 PROBE_SECONDS = 0.5  # ... then between probes ...
 PROBE_MAX_SECONDS = 8.0  # ... doubled while they lose, up to this
-PROBE_SHARE = 0.125  # a probe runs this share of the steps of a normal call (at least one step)
+PROBE_SHARE = 0.125  # a probe runs this share of the steps of a normal call: a call of fewer than 1 / this
+# steps is not probed (one step timed alone is noise: a jam's 7-ms step took 6.5-14 ms on two threads)
 SWITCH = 0.9  # the other count takes over when its step takes less than this × the current one's
 SLOWDOWN = 2.5  # a call this many times slower per step than the current count's average probes at once
 AVERAGE = 0.3  # weight of the newest call in the current count's average seconds per step
 CPU_SHARE = 0.85  # cores per thread below which a call's threads were not getting their cores ...
-SHARE_SECONDS = 0.01  # ... judged on calls at least this long
+SHARE_SECONDS = 0.05  # ... judged over consecutive calls this long in all
 
 
 def available() -> int:
@@ -48,21 +51,28 @@ def available() -> int:
     return numba.config.NUMBA_NUM_THREADS
 
 
-def free_cores() -> int | None:
+def free_cores(ours: int = 1) -> int | None:
     """Cores that no other runnable task wants at this moment (Linux: the running count of
-    /proc/loadavg, less this thread), or None where that cannot be read."""
+    /proc/loadavg, less the `ours` threads this run has: the caller, and the pool's others, which
+    spin a while after each parallel region), or None where that cannot be read."""
     try:
         with open("/proc/loadavg") as f:
             running = int(f.read().split()[3].split("/")[0])
         cores = len(os.sched_getaffinity(0))
     except (OSError, ValueError, IndexError, AttributeError):
         return None
-    return cores - max(running - 1, 0)
+    return cores - max(running - ours, 0)
+
+
+SHARED_POOL = "BLOBSIM_SHARED_POOL"  # environment: "1" where NUMBA_NUM_THREADS was set by blobsim, not the user
 
 
 def fixed_by_environment() -> bool:
-    """Whether the user fixed the thread count for numba (NUMBA_NUM_THREADS): then it is used as is."""
-    return bool(os.environ.get("NUMBA_NUM_THREADS", "").strip())
+    """Whether the user fixed the thread count for numba (NUMBA_NUM_THREADS): then it is used as is.
+    A local Dask worker's NUMBA_NUM_THREADS is the machine's cores, set by tools/executor.py with
+    SHARED_POOL: its runs adapt (one thread while the other workers keep the cores busy, all of them
+    once those are idle, as for a jam's last seed)."""
+    return bool(os.environ.get("NUMBA_NUM_THREADS", "").strip()) and os.environ.get(SHARED_POOL) != "1"
 
 
 class ThreadChoice:
@@ -74,11 +84,12 @@ class ThreadChoice:
         most = threads or available()
         self.adaptive = threads is None and parallel and most > 1 and not fixed_by_environment()
         self.most = most if parallel else 1
-        self.current = 1 if self.adaptive and self._crowded() else self.most
+        self.current = 1 if self.adaptive and self._crowded(ours=1) else self.most  # (no pool thread runs yet)
         self.average = math.inf  # seconds per step at the current count
         self.interval = PROBE_SECONDS
         self.next_probe = time.perf_counter() + FIRST_PROBE_SECONDS
         self.switches = 0
+        self._share = [0.0, 0.0]  # wall and CPU seconds of the calls on several threads not yet judged
         self._before = numba.get_num_threads()
 
     def __enter__(self):
@@ -88,18 +99,18 @@ class ThreadChoice:
     def __exit__(self, *exc):
         numba.set_num_threads(self._before)  # the calling thread's count, as it was (tests run many runs)
 
-    def _crowded(self) -> bool | None:
-        """Whether other processes are running on the cores that more threads would need (None:
-        cannot tell here)."""
-        free = free_cores()
+    def _crowded(self, ours: int) -> bool | None:
+        """Whether other processes are running on the cores that more threads would need, this run
+        having `ours` threads that may be running (None: cannot tell here)."""
+        free = free_cores(ours)
         return None if free is None else free < self.most
 
     def plan(self, steps: int) -> tuple[int, int]:
         """(threads, steps) for the next call, which would run `steps` steps: a probe is shorter."""
         threads = self.current
         now = time.perf_counter()
-        if self.adaptive and now >= self.next_probe:
-            crowded = self._crowded()
+        if self.adaptive and now >= self.next_probe and steps * PROBE_SHARE >= 1.0:  # (a shorter call waits)
+            crowded = self._crowded(self.current)
             if crowded is None or crowded == (self.current > 1):  # worth a probe of the other count
                 threads, steps = (1 if self.current > 1 else self.most), max(1, int(steps * PROBE_SHARE))
             elif self.current == 1:  # no core for more threads: ask again later
@@ -118,11 +129,17 @@ class ThreadChoice:
         per_step = seconds / steps
         now = time.perf_counter()
         # (not judged on a probe: a short call's share is mostly the other threads waking up)
-        starved = (threads > 1 and cpu_seconds is not None and seconds >= SHARE_SECONDS
-                   and cpu_seconds < CPU_SHARE * threads * seconds)
+        starved = False
+        if threads > 1 and threads == self.current and cpu_seconds is not None:
+            self._share[0] += seconds
+            self._share[1] += cpu_seconds
+            if self._share[0] >= SHARE_SECONDS:
+                starved = self._share[1] < CPU_SHARE * threads * self._share[0]
+                self._share = [0.0, 0.0]
         if threads != self.current:  # a probe
             if per_step < SWITCH * self.average:
                 self.current, self.average, self.interval = threads, per_step, PROBE_SECONDS
+                self._share = [0.0, 0.0]
                 self.switches += 1
             else:
                 self.interval = min(2.0 * self.interval, PROBE_MAX_SECONDS)

@@ -20,6 +20,37 @@ CONNECT_SECONDS = 10  # a scheduler that does not answer within this is an error
 CLOSE_SECONDS = 3  # a local cluster's workers get this long to stop in order (a Ctrl-C: within 5 s in all)
 
 
+def _quiet_workers() -> dict:
+    """Dask settings that leave a local cluster's cores to the runs (measured on the jam of
+    scenes/jamming/bidisperse.toml, two workers on two cores, 2026-11-27: 11.0 and 10.5 ms a step
+    against 8.3 and 8.2 in two plain processes; 8.3 and 8.9 with these):
+    - no MALLOC_TRIM_THRESHOLD_ for the workers (Dask sets 64 KiB to hand freed memory back to the
+      system). Any value set fixes glibc's mmap threshold at 128 KiB, so each of the step's
+      temporaries that size or larger came from new pages: 17,000 page faults a second, a tenth
+      of the step's time spent in the kernel. The workers keep glibc's own defaults;
+    - no statistical profiler in the workers (it samples every thread's stack 100 times a second,
+      each time taking the core from the run; the dashboard's profile page stays empty);
+    - the servers' event-loop check every second instead of every 20 ms."""
+    import dask
+    import distributed  # noqa: F401 - loads distributed's defaults into dask.config
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
+               if k != "MALLOC_TRIM_THRESHOLD_"}
+    return {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False,
+            "distributed.admin.tick.interval": "1s"}
+
+
+def worker_threads() -> dict:
+    """The environment that sets a local worker's numba threads. One single-threaded worker process
+    per core, each with a pool of every core's threads that its runs use only while the cores are
+    free (io/threads.py): a run starts on one thread beside busy workers and takes the idle ones'
+    cores at the end (the last seed of a jam: measured 1.5× faster a step on two threads than on
+    one). A NUMBA_NUM_THREADS of the user's is kept, and fixed."""
+    from ..io.threads import SHARED_POOL, fixed_by_environment
+    if fixed_by_environment():
+        return {"NUMBA_NUM_THREADS": os.environ["NUMBA_NUM_THREADS"]}
+    return {"NUMBA_NUM_THREADS": str(default_workers()), SHARED_POOL: "1"}
+
+
 class SchedulerError(Exception):
     """The Dask scheduler named cannot be reached; the message is one line for the user."""
 
@@ -53,14 +84,11 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
         # instead of each starting from scratch (spawn). distributed sets that server's preload list
         # itself (utils.get_mp_context), so blobsim's modules are not on it: each worker imports them.
         # quiet_worker: the workers leave SIGINT to this process, which stops them in order.
-        dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})
+        dask.config.set({"distributed.worker.multiprocessing-method": "forkserver", **_quiet_workers()})
         n = workers or default_workers()
-        # One single-threaded worker process per core, and numba's threads split between them,
-        # so workers × threads never exceeds the cores.
-        threads = str(max(1, default_workers() // n))
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                                host="127.0.0.1", silence_logs=logging.CRITICAL,  # blobsim says what failed
-                               env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": "1"},
+                               env={**worker_threads(), "OMP_NUM_THREADS": "1"},
                                preload=["blobcli.tools.quiet_worker"])
     try:
         client = Client(cluster if cluster is not None else scheduler, timeout=f"{CONNECT_SECONDS}s")
