@@ -98,6 +98,8 @@ from .ring import centre_motion, most_vertices, next_in_ring, prev_in_ring, ring
 PAIRS_PER_BLOB = 64  # a pile has ~3 close pairs per blob; past 64 (blobs spawned on top of each other)
 #                     the pair lists would exhaust memory, so the run stops instead
 BROAD_MARGIN = 0.25  # × the larger radius: pairs closer than r_a + r_b + margin are tested
+FOUND_PER_BLOB = 8  # the broad phase keeps this many of each blob's pairs as it counts them (a blob has ~3
+#                     pairs b > a in a pile or a packing), so that listing them is a copy, not a second search
 NO_EDGE = np.iinfo(np.int64).max  # above the bits of any squared distance
 CONTACTS_PER_VERTEX = 2  # a vertex keeps contacts with its two nearest neighbouring blobs (three blobs meet at
 #                          a junction of a pile)
@@ -151,20 +153,32 @@ def _find_pairs(center, radius, max_pairs):
     for b in range(B):
         cell_of[b] = int((center[b, 1] - y0) / cell) * nx + int((center[b, 0] - x0) / cell)
     start, order = _bucket(cell_of, nx * ny)
-    # Two passes over each blob's 3 × 3 neighbourhood, in parallel over blobs: count, then
-    # fill from each blob's own offset, so the order is the same for any thread count.
+    # Each blob's 3 × 3 neighbourhood, in parallel over blobs: its pairs are counted and kept in its
+    # own rows of `found` (up to FOUND_PER_BLOB), then copied from each blob's own offset, so the
+    # order is the same for any thread count. A blob with more is searched again for the copy.
     first = np.zeros(B + 1, np.int64)
-    nowhere = np.empty((0, 2), np.int64)
+    found = np.empty((B * FOUND_PER_BLOB, 2), np.int64)
     for a in numba.prange(B):
-        first[a + 1] = _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, nowhere, False)
+        first[a + 1] = _near_blobs(a, center, radius, cell_of, start, order, nx, ny, found, a * FOUND_PER_BLOB,
+                                   FOUND_PER_BLOB)
     for a in range(B):
         first[a + 1] += first[a]
     if first[B] > max_pairs:
-        return nowhere, first[B]
+        return np.empty((0, 2), np.int64), first[B]
     pairs = np.empty((first[B], 2), np.int64)
     for a in numba.prange(B):
-        _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, True)
+        _copy_found(a, first, found, pairs)
+        if first[a + 1] - first[a] > FOUND_PER_BLOB:
+            _near_blobs(a, center, radius, cell_of, start, order, nx, ny, pairs, first[a], first[a + 1] - first[a])
     return pairs, first[B]
+
+
+@inline_kernel
+def _copy_found(a, first, found, pairs):
+    """Blob a's pairs kept in `found` (its first FOUND_PER_BLOB) into pairs[first[a]:]."""
+    row = a * FOUND_PER_BLOB
+    for k in range(min(first[a + 1] - first[a], FOUND_PER_BLOB)):
+        pairs[first[a] + k, 0], pairs[first[a] + k, 1] = found[row + k, 0], found[row + k, 1]
 
 
 @stage_kernel
@@ -185,22 +199,26 @@ def _find_pairs_periodic(center, radius, max_pairs, box):
         iy = min(int((fy - math.floor(fy)) * ny), ny - 1)
         cell_of[b] = iy * nx + ix
     start, order = _bucket(cell_of, nx * ny)
-    first = np.zeros(B + 1, np.int64)
-    nowhere = np.empty((0, 2), np.int64)
+    first = np.zeros(B + 1, np.int64)  # counted and kept, then copied: as _find_pairs
+    found = np.empty((B * FOUND_PER_BLOB, 2), np.int64)
     for a in numba.prange(B):
-        first[a + 1] = _near_images(a, center, radius, cell_of, start, order, nx, ny, first, nowhere, False, box)
+        first[a + 1] = _near_images(a, center, radius, cell_of, start, order, nx, ny, found, a * FOUND_PER_BLOB,
+                                    FOUND_PER_BLOB, box)
     for a in range(B):
         first[a + 1] += first[a]
     if first[B] > max_pairs:
-        return nowhere, first[B]
+        return np.empty((0, 2), np.int64), first[B]
     pairs = np.empty((first[B], 2), np.int64)
     for a in numba.prange(B):
-        _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs, True, box)
+        _copy_found(a, first, found, pairs)
+        if first[a + 1] - first[a] > FOUND_PER_BLOB:
+            _near_images(a, center, radius, cell_of, start, order, nx, ny, pairs, first[a], first[a + 1] - first[a],
+                         box)
     return pairs, first[B]
 
 
 @inline_kernel
-def _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill, box):
+def _near_images(a, center, radius, cell_of, start, order, nx, ny, out, row, most, box):
     """_near_blobs in a periodic box. Across the top and bottom edges of a sheared box the row of
     images is shifted along x by γ L_y: there every cell of the row is looked at."""
     count = 0
@@ -218,8 +236,8 @@ def _near_images(a, center, radius, cell_of, start, order, nx, ny, first, pairs,
                 sx, sy = image(center, a, b, box)
                 reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
                 if (center[a, 0] + sx - center[b, 0]) ** 2 + (center[a, 1] + sy - center[b, 1]) ** 2 < reach * reach:
-                    if fill:
-                        pairs[first[a] + count, 0], pairs[first[a] + count, 1] = a, b
+                    if count < most:
+                        out[row + count, 0], out[row + count, 1] = a, b
                     count += 1
     return count
 
@@ -243,9 +261,9 @@ def image(center, a, b, box):
 
 
 @inline_kernel
-def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, fill):
-    """Blobs b > a in the cells around a's, closer than r_a + r_b + margin; with fill, write
-    them as pairs[first[a]:] (in cell order, then by index). Returns how many."""
+def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, out, row, most):
+    """Blobs b > a in the cells around a's, closer than r_a + r_b + margin: the first `most` of them
+    written as pairs (a, b) to out[row:] (in cell order, then by index). Returns how many in all."""
     count = 0
     ix, iy = cell_of[a] % nx, cell_of[a] // nx
     for jy in range(max(iy - 1, 0), min(iy + 2, ny)):
@@ -257,8 +275,8 @@ def _near_blobs(a, center, radius, cell_of, start, order, nx, ny, first, pairs, 
                     continue
                 reach = radius[a] + radius[b] + BROAD_MARGIN * max(radius[a], radius[b])
                 if (center[a, 0] - center[b, 0]) ** 2 + (center[a, 1] - center[b, 1]) ** 2 < reach * reach:
-                    if fill:
-                        pairs[first[a] + count, 0], pairs[first[a] + count, 1] = a, b
+                    if count < most:
+                        out[row + count, 0], out[row + count, 1] = a, b
                     count += 1
     return count
 
