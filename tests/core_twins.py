@@ -7,12 +7,25 @@ and one through the C stage, and every array of both must agree bit for bit (`as
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from blobcli import build, build_params, parse_scene
 from blobcli.core import Views
 from blobcli.sim import pipeline
 from blobcli.sim.jamming import copy_state
+
+
+def core():
+    """(ffi, lib) of the compiled core: the installed extension, or, with BLOBSIM_CORE_STAGES=a,b in the
+    environment, a module built from those stage files alone (build.stage_module: for work on one stage)."""
+    only = os.environ.get("BLOBSIM_CORE_STAGES")
+    if only:
+        from blobcli.core.build import stage_module
+        return stage_module(only.split(","))
+    from blobcli.core import load
+    return load()
 
 
 def scene_state(toml: str, steps: int = 0):

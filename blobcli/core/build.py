@@ -51,15 +51,19 @@ def source_hash(root: Path = HERE) -> str:
     return digest.hexdigest()[:16]
 
 
+def api_headers(root: Path = HERE, only: list[str] | None = None) -> list[Path]:
+    """blobcore.h, then each header marked "(read by cffi)" on its first line: the stage files' (those named
+    in `only`, if given) and those of no stage file (shared constants)."""
+    marked = [h for h in headers(root) if h.name != "blobcore.h" and CFFI_MARK in h.read_text().split("\n", 1)[0]]
+    return [root / "blobcore.h"] + [h for h in marked
+                                    if only is None or h.stem in only or not (root / f"{h.stem}.c").exists()]
+
+
 def cdef_text(root: Path = HERE, only: list[str] | None = None) -> str:
-    """The declarations cffi reads: blobcore.h, then each header marked for it (or those of the stage files
-    named in `only`), without the lines of the preprocessor but integer #defines."""
-    chosen = [root / "blobcore.h"] + [h for h in headers(root) if h.name != "blobcore.h"
-                                      and CFFI_MARK in h.read_text().split("\n", 1)[0]
-                                      and (only is None or h.stem in only)]
+    """The declarations cffi reads: the API headers without the lines of the preprocessor but integer #defines."""
     keep = re.compile(r"#define\s+\w+\s+-?\d+\s*(/\*.*\*/)?\s*$")
     lines = []
-    for path in chosen:
+    for path in api_headers(root, only):
         for line in path.read_text().splitlines():
             if line.lstrip().startswith("#") and not keep.match(line.strip()):
                 continue
@@ -113,7 +117,8 @@ def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None
     builder = FFI()
     builder.cdef(cdef_text(root, only))
     files = sources(root) if only is None else [root / f"{name}.c" for name in ["threads", "scratch", *only]]
-    builder.set_source(module, '#include "blobcore.h"\n', sources=[str(f) for f in files], include_dirs=[str(root)],
+    preamble = "".join(f'#include "{h.name}"\n' for h in api_headers(root, only))
+    builder.set_source(module, preamble, sources=[str(f) for f in files], include_dirs=[str(root)],
                        extra_compile_args=flags, extra_link_args=link,
                        define_macros=[("BC_SOURCE_HASH", f'"{source_hash(root)}"')], libraries=["m"])
     return builder
