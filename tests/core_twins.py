@@ -66,3 +66,27 @@ def assert_same_bits(reference, core) -> None:
                 worst = np.max(np.abs(a.astype(float) - b.astype(float))) if a.size else 0.0
                 raise AssertionError(f"{name}: {len(differ)} of {a.size} entries differ (first at flat index "
                                      f"{differ[:5].tolist()}, largest difference {worst:.3e})")
+
+
+def fill_pairs(ffi, w, pairs, partners, strips, pair_impact=None) -> None:
+    """Put the numba broad phase's output (collide.find_blob_pairs: pairs, partners, strips; carry_impacts:
+    pair_impact) into the scratch `w` (a bcScratch *), as broad_phase.c leaves it, for the stages that read it."""
+    def put(dest, array):
+        array = np.ascontiguousarray(array)
+        ffi.memmove(dest, ffi.from_buffer(array), array.nbytes)
+
+    w.pair_count = len(pairs)
+    put(w.pairs, pairs.astype(np.int64))
+    start, partner, pair_of = partners
+    put(w.partner_start, start)
+    put(w.partner, partner)
+    put(w.partner_pair, pair_of)
+    strip_of, strip_start, strip_blobs, crossing, far = strips
+    w.strip_count = len(strip_start) - 1
+    put(w.strip_of, strip_of)
+    put(w.strip_start, strip_start)
+    put(w.strip_blobs, strip_blobs)
+    put(w.crossing, crossing)
+    w.far = int(far)
+    if pair_impact is not None:
+        put(w.pair_impact, pair_impact)

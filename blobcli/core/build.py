@@ -56,7 +56,8 @@ def api_headers(root: Path = HERE, only: list[str] | None = None) -> list[Path]:
     in `only`, if given) and those of no stage file (shared constants)."""
     marked = [h for h in headers(root) if h.name != "blobcore.h" and CFFI_MARK in h.read_text().split("\n", 1)[0]]
     return [root / "blobcore.h"] + [h for h in marked
-                                    if only is None or h.stem in only or not (root / f"{h.stem}.c").exists()]
+                                    if only is None or h.stem in [*only, "scratch"]
+                                    or not (root / f"{h.stem}.c").exists()]
 
 
 def cdef_text(root: Path = HERE, only: list[str] | None = None) -> str:

@@ -1,5 +1,6 @@
-/* The scratch of one run of the step (blobcore.h: bcScratch): what each stage needs beyond the
- * state, allocated once per bc_advance call (scratch.c), one section per stage file. */
+/* The scratch of one run of the step (blobcore.h: bcScratch), its fields visible to the tests (read by cffi):
+ * what each stage needs beyond the state, allocated once per bc_advance call (scratch.c), one section per
+ * stage file. */
 #ifndef BC_SCRATCH_H
 #define BC_SCRATCH_H
 
