@@ -30,13 +30,18 @@ def load():
     except ImportError as e:
         raise ImportError(f"blobsim's compiled core is not built ({e}): run `pip install -e .` in the project "
                           "(a C compiler and Python's headers are needed)") from e
+    check_fresh(_blobcore.ffi.string(_blobcore.lib.bc_source_hash()).decode())
+    return _blobcore.ffi, _blobcore.lib
+
+
+def check_fresh(built: str, root: Path = HERE) -> None:
+    """Raise StaleBuild when the library's source hash (`built`) is not that of the C sources in `root`
+    (an editable install whose C was edited and not rebuilt); an install without its sources passes."""
     from .build import source_hash
 
-    built = _blobcore.ffi.string(_blobcore.lib.bc_source_hash()).decode()
-    if any(HERE.glob("*.c")) and built != source_hash():
-        raise StaleBuild(f"blobsim's compiled core ({built}) is older than its C sources ({source_hash()}): "
+    if any(root.glob("*.c")) and built != source_hash(root):
+        raise StaleBuild(f"blobsim's compiled core ({built}) is older than its C sources ({source_hash(root)}): "
                          "rebuild it with `pip install -e .` (or `python -m blobcli.core.build`)")
-    return _blobcore.ffi, _blobcore.lib
 
 
 _TYPES = {np.dtype(np.float64): "double *", np.dtype(np.int64): "int64_t *", np.dtype(np.uint8): "uint8_t *"}

@@ -74,7 +74,7 @@ def cdef_text(root: Path = HERE, only: list[str] | None = None) -> str:
 
 def _compiles(flags: list[str]) -> bool:
     """Whether the C compiler Python was built with accepts these flags (and links them)."""
-    cc = (sysconfig.get_config_var("CC") or "cc").split()
+    cc = _compiler()
     with tempfile.TemporaryDirectory() as tmp:
         src = Path(tmp) / "probe.c"
         src.write_text("#include <omp.h>\nint main(void) { return omp_get_max_threads() > 0 ? 0 : 1; }\n")
@@ -83,6 +83,11 @@ def _compiles(flags: list[str]) -> bool:
         except OSError:
             return False
         return run.returncode == 0
+
+
+def _compiler() -> list[str]:
+    """The C compiler setuptools will call: $CC, else the one Python was built with."""
+    return (os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()
 
 
 def compiler_flags() -> tuple[list[str], list[str]]:
@@ -98,7 +103,7 @@ def compiler_flags() -> tuple[list[str], list[str]]:
 
 def _check_compiler() -> None:
     """Fail with a line that says what to install when there is no C compiler or no Python headers."""
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
+    cc = _compiler()[0]
     if shutil.which(cc) is None:
         sys.exit(f"blobsim: building the compiled core needs a C compiler ({cc!r} not found): install one "
                  "(Debian/Ubuntu: apt-get install gcc; macOS: xcode-select --install), then pip install again")

@@ -410,6 +410,49 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
         kernel(*args)
 
 
+CORE_STEP = "BLOBSIM_STEP"  # environment: "c", the compiled core's step (blobcli/core) instead of numba's
+
+
+def core_step_chosen() -> bool:
+    """Whether `advance` runs the compiled core's step (BLOBSIM_STEP=c)."""
+    return os.environ.get(CORE_STEP) == "c"
+
+
+class _CoreCall:
+    """The compiled core's views over the arrays of the last call, kept while the same state, arrays and
+    settings are stepped again (a run calls `advance` once per recorded frame)."""
+    key = None
+    views = None
+    scratch = None
+
+
+def _core_views(state: State, arrays, step_settings: StepSettings, parallel: bool):
+    from ..core import Views, load
+
+    key = (id(state), id(state.position), id(arrays), step_settings, parallel)
+    if _CoreCall.key != key:
+        ffi, lib = load()
+        _CoreCall.views = None
+        _CoreCall.views = Views(ffi, arrays, state, step_settings, parallel)
+        _CoreCall.scratch = ffi.gc(lib.bc_scratch_new(_CoreCall.views.model), lib.bc_scratch_free)
+        _CoreCall.views.context.w = _CoreCall.scratch
+        _CoreCall.key = key
+    return _CoreCall.views
+
+
+def _advance_core(state: State, arrays, step_settings: StepSettings, parallel: bool, steps: int, timer):
+    """The compiled core's step (blobcli/core/step.c): (steps done, why, detail), as `_advance`."""
+    from ..core import load
+
+    ffi, lib = load()
+    views = _core_views(state, arrays, step_settings, parallel)
+    clock = ffi.cast("double *", timer.ctypes.data) if len(timer) else ffi.NULL
+    stop = lib.bc_advance(views.context, steps, RUNAWAY, clock)
+    if stop.why == lib.BC_NO_MEMORY:
+        raise MemoryError("the step's scratch could not be allocated")
+    return stop.steps, stop.why, stop.detail
+
+
 def advance(state: State, model: Model, params: Params, steps: int, clock: dict | None = None,
             step_settings: StepSettings | None = None, arrays=None) -> int:
     """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps or more, up to
@@ -422,8 +465,11 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
     rebuilding them on every call; `arrays` (a schedule's: sim/schedule.py) replace model.arrays."""
     timer = np.zeros(len(STAGES)) if clock is not None else NO_CLOCK
     step_settings = step_settings or settings(model, params)
-    done, why, detail = step_build(model, step_settings)(steps, state, model.arrays if arrays is None else arrays,
-                                                         step_settings, timer)
+    arrays = model.arrays if arrays is None else arrays
+    if core_step_chosen():
+        done, why, detail = _advance_core(state, arrays, step_settings, model.parallel, steps, timer)
+    else:
+        done, why, detail = step_build(model, step_settings)(steps, state, arrays, step_settings, timer)
     if clock is not None:
         for name, seconds in zip(STAGES, timer):
             clock[name] = clock.get(name, 0.0) + float(seconds)

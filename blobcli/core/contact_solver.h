@@ -1,0 +1,17 @@
+/* contact_solver.h: the blob contacts' solver, positions and velocities (read by cffi) */
+#ifndef BC_CONTACT_SOLVER_H
+#define BC_CONTACT_SOLVER_H
+
+#include "blobcore.h"
+
+/* One iteration's pass over the kept blob contacts (s->c_edge): every vertex inside the other blob is pushed
+ * out, with friction, blob by blob by the strips of the scratch (each blob's contacts together); `reverse`
+ * (odd iterations): each strip's blobs in reverse order. Writes c_edge, c_hit, c_normal, blob_contact_depth,
+ * stick_edge, stick_t, the positions and, in a periodic box, the virial. */
+void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h);
+
+/* At every contact that pushed this substep (c_hit): no approach along its last push's normal, and Coulomb
+ * friction on the tangential relative velocity; the impulses go into the virial in a periodic box. */
+void bc_blob_contact_velocities(const bcContext *ctx, double h);
+
+#endif

@@ -1,0 +1,22 @@
+/* Friction and restitution at a contact: how two materials combine, written once for every contact stage.
+ * Materials combine as Box2D does: μ = √(μ_a μ_b) (static and kinetic alike), e = max(e_a, e_b). */
+#ifndef BC_FRICTION_H
+#define BC_FRICTION_H
+
+#include <math.h>
+
+#include "ring.h"
+
+/* μ of a contact between materials of coefficients μ_a and μ_b: √(μ_a μ_b) */
+static inline double bc_mix_friction(double mu_a, double mu_b) { return sqrt(mu_a * mu_b); }
+
+/* e of a contact: the bouncier material's, max(e_a, e_b) (Python's max: e_a unless e_b is strictly greater) */
+static inline double bc_mix_restitution(double e_a, double e_b) { return bc_max(e_a, e_b); }
+
+/* Coulomb's rule on a slip (|f_t| <= μ |f_n|, at position or velocity level): the share of the slip it removes,
+ * all of it within the static limit μ_s D, else the kinetic limit μ_k D's worth (at most all) */
+static inline double bc_coulomb_cut(double slip, double static_limit, double kinetic_limit) {
+    return slip <= static_limit ? 1.0 : bc_min(kinetic_limit / slip, 1.0);
+}
+
+#endif

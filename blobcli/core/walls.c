@@ -1,0 +1,454 @@
+/* Walls that move: colliders on a prescribed motion, or pushed by a load (a piston).
+ *
+ * Collider k's pose at time t is the rigid map T(t): p -> q + d + R(θ) (p - q) of the rows as the scene wrote
+ * them (m->statics[kind].geom), q its pivot, d its displacement and θ its turn. It moves in one of three ways
+ * (bcWalls.motion): at a constant velocity (d = v t, θ = ω t, as Box2D's kinematic bodies: a velocity, not a
+ * force, drives them, and nothing the blobs do changes it); along a path (d, θ linear between keyframes); or
+ * LOADED: along its load direction e only, d = s e, with Newton's law for s.
+ *
+ * Each substep (of length h, from t), bc_place_walls moves every collider that moves to its pose at t + h
+ * (model rows -> the state's placed rows and bounding boxes) and writes its motion over the substep as the
+ * rigid map Δ = T(t + h) ∘ T(t)⁻¹, p -> R(Δθ) p + τ (rows delta: cos Δθ, sin Δθ, τx, τy, loaded). The collider
+ * kernels (statics.c) then test each vertex's path relative to the collider: from Δ(x_prev), where the vertex
+ * would be had it been carried with the collider, to x, against the collider where it is now. So the swept
+ * tests see the wall's own motion (a wall never passes a vertex, however fast), static friction holds a vertex
+ * to the moving surface, and the velocity a contact is measured against is the surface's, w = (x - Δ⁻¹(x)) / h.
+ *
+ * A loaded wall (mass M, load F along e): s* = s + h V + h² F / M is predicted (gravity does not act on it).
+ * The collider kernels push vertices out of it as if it were fixed; after each iteration, bc_yield_loaded_walls
+ * shares each of those pushes between the wall and the vertices by their masses. Every vertex i it pushed by
+ * D_i along n_i stays on its surface, so if the wall moves σ along e, the vertex moves σ c_i along n_i too
+ * (c_i = n_i · e), and momentum along e is kept (the wall's guide takes the rest):
+ *     M σ + Σ m_i (D_i + σ c_i) c_i = Σ m_i D_i c_i - Σ m_i D_i c_i  =>  σ = -Σ m_i D_i c_i / (M + Σ m_i c_i²),
+ * the inelastic two-body split of PBD (a light wall yields, a heavy one barely), never an overshoot. After the
+ * substep V = (s - s_start) / h; the contacts' velocity stages then share their impulses with it the same way
+ * (bc_react_loaded_walls). At rest the load and the blobs' pushes balance: the impulses the blobs give it over a
+ * step are F dt, which is what bc_account_contacts records.
+ *
+ * Forces: the kernels record for each vertex the pushes Δx each collider gave it over the step (up to two
+ * colliders a vertex; a third shares the second's record: touch.h); bc_account_contacts turns them into the
+ * impulses -m Σ Δx / h the blobs exert on each collider, and their torques about its pivot, once a step, in
+ * vertex order (the same bits for any thread count).
+ *
+ * Arrays (blobcore.h): static_pose (S, 6): dx, dy (m), θ (rad), s (m), V (m/s), s at the substep's start (m);
+ * static_impulse (S, 3); walls.drive (S, 3); walls.path (K, 4): t (s), dx, dy (m), turn (rad).
+ */
+#include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "parallel.h"
+#include "ring.h"
+#include "scratch.h"
+#include "touch.h"
+#include "walls.h"
+
+enum { PLANE, SEGMENT, CIRCLE, POLYGON }; /* the solver kinds, colliders.SOLVERS */
+static const int64_t POSE = BC_WALL_POSE_COLUMNS;
+
+/* (dx, dy, θ) of a kinematic collider at time t */
+static void pose_at(const bcWalls *walls, int64_t k, double t, double pose[3]) {
+    if (walls->motion[k] == BC_VELOCITY) {
+        pose[0] = walls->drive[3 * k] * t;
+        pose[1] = walls->drive[3 * k + 1] * t;
+        pose[2] = walls->drive[3 * k + 2] * t;
+        return;
+    }
+    int64_t o = walls->path_offsets[k], e = walls->path_offsets[k + 1];
+    const double *path = walls->path;
+    if (e <= o) { /* a path without keyframes (the scene's check refuses it): no displacement */
+        pose[0] = pose[1] = pose[2] = 0.0;
+        return;
+    }
+    if (t <= path[4 * o]) {
+        pose[0] = path[4 * o + 1];
+        pose[1] = path[4 * o + 2];
+        pose[2] = path[4 * o + 3];
+        return;
+    }
+    for (int64_t j = o + 1; j < e; j++) {
+        if (t < path[4 * j]) { /* linear between keyframes j - 1 and j */
+            const double *a = path + 4 * (j - 1), *b = path + 4 * j;
+            double f = (t - a[0]) / (b[0] - a[0]);
+            pose[0] = a[1] + f * (b[1] - a[1]);
+            pose[1] = a[2] + f * (b[2] - a[2]);
+            pose[2] = a[3] + f * (b[3] - a[3]);
+            return;
+        }
+    }
+    pose[0] = path[4 * (e - 1) + 1];
+    pose[1] = path[4 * (e - 1) + 2];
+    pose[2] = path[4 * (e - 1) + 3];
+}
+
+/* T as (cos θ, sin θ, tx, ty): p -> R(θ) p + t, t = q + d - R(θ) q */
+static void map(const bcWalls *walls, int64_t k, double dx, double dy, double theta, double T[4]) {
+    double c = cos(theta), s = sin(theta);
+    double qx = walls->pivot[2 * k], qy = walls->pivot[2 * k + 1];
+    T[0] = c;
+    T[1] = s;
+    T[2] = qx + dx - (c * qx - s * qy);
+    T[3] = qy + dy - (s * qx + c * qy);
+}
+
+/* T(x, y) */
+static inline void apply(const double T[4], double x, double y, double *ax, double *ay) {
+    *ax = T[0] * x - T[1] * y + T[2];
+    *ay = T[1] * x + T[0] * y + T[3];
+}
+
+/* Collider k's rows and bounding box at pose (dx1, dy1, θ1), and its delta row from pose 0 to pose 1 */
+static void place(const bcContext *ctx, int64_t k, double dx0, double dy0, double th0, double dx1, double dy1,
+                  double th1, bool loaded) {
+    const bcWalls *walls = &ctx->m->walls;
+    int64_t kind = walls->kind[k], shape = walls->shape[k];
+    if (kind < 0 || kind >= BC_SOLVER_KINDS || shape < 0 || shape >= ctx->m->statics[kind].shapes) return;
+    double T1[4], T0[4];
+    map(walls, k, dx1, dy1, th1, T1);
+    map(walls, k, dx0, dy0, th0, T0);
+    double c1 = T1[0], s1 = T1[1], tx1 = T1[2], ty1 = T1[3], c0 = T0[0], s0 = T0[1], tx0 = T0[2], ty0 = T0[3];
+    /* Δ = T1 ∘ T0⁻¹: p -> R1 R0ᵀ (p - t0) + t1 */
+    double cd = c1 * c0 + s1 * s0, sd = s1 * c0 - c1 * s0;
+    const double *geom0 = ctx->m->statics[kind].geom;
+    const int64_t *offsets = ctx->m->statics[kind].shape_offsets;
+    double *geom = ctx->s->placed[kind].geom, *aabb = ctx->s->placed[kind].aabb;
+    double *delta = ctx->s->placed[kind].delta + 5 * shape;
+    delta[0] = cd;
+    delta[1] = sd;
+    delta[2] = tx1 - (cd * tx0 - sd * ty0);
+    delta[3] = ty1 - (sd * tx0 + cd * ty0);
+    delta[4] = loaded ? 1.0 : 0.0;
+    double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    for (int64_t r = offsets[shape]; r < offsets[shape + 1]; r++) {
+        const double *row0 = geom0 + 4 * r;
+        double *row = geom + 4 * r;
+        double ax, ay;
+        apply(T1, row0[0], row0[1], &ax, &ay);
+        if (kind == PLANE) { /* point and normal */
+            row[0] = ax;
+            row[1] = ay;
+            row[2] = c1 * row0[2] - s1 * row0[3];
+            row[3] = s1 * row0[2] + c1 * row0[3];
+        } else if (kind == CIRCLE) { /* centre (radius and inside as written) */
+            row[0] = ax;
+            row[1] = ay;
+            x0 = bc_min(x0, ax - row0[2]);
+            y0 = bc_min(y0, ay - row0[2]);
+            x1 = bc_max(x1, ax + row0[2]);
+            y1 = bc_max(y1, ay + row0[2]);
+        } else { /* segment, polygon edge: both ends */
+            double bx, by;
+            apply(T1, row0[2], row0[3], &bx, &by);
+            row[0] = ax;
+            row[1] = ay;
+            row[2] = bx;
+            row[3] = by;
+            x0 = bc_min(bc_min(x0, ax), bx);
+            y0 = bc_min(bc_min(y0, ay), by);
+            x1 = bc_max(bc_max(x1, ax), bx);
+            y1 = bc_max(bc_max(y1, ay), by);
+        }
+    }
+    /* planes and drums: the whole plane, as built */
+    if (kind != PLANE && !(kind == CIRCLE && geom0[4 * offsets[shape] + 3] != 0.0)) {
+        aabb[4 * shape] = x0;
+        aabb[4 * shape + 1] = y0;
+        aabb[4 * shape + 2] = x1;
+        aabb[4 * shape + 3] = y1;
+    }
+}
+
+/* Wake the sleeping blobs whose bounding box meets collider k's (its island wakes at the step's end: sleep) */
+static void wake_near(const bcContext *ctx, int64_t k) {
+    const bcModel *m = ctx->m;
+    bcState *s = ctx->s;
+    int64_t kind = m->walls.kind[k], shape = m->walls.shape[k], n = m->vertex_count;
+    if (kind < 0 || kind >= BC_SOLVER_KINDS || shape < 0 || shape >= m->statics[kind].shapes) return;
+    const double *aabb = s->placed[kind].aabb + 4 * shape, *pos = s->position;
+    for (int64_t b = 0; b < m->blob_count; b++) {
+        if (s->awake[b]) continue;
+        double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+        for (int64_t i = m->offsets[b]; i < m->offsets[b + 1]; i++) {
+            x0 = bc_min(x0, pos[i]);
+            y0 = bc_min(y0, pos[n + i]);
+            x1 = bc_max(x1, pos[i]);
+            y1 = bc_max(y1, pos[n + i]);
+        }
+        if (x1 >= aabb[0] && x0 <= aabb[2] && y1 >= aabb[1] && y0 <= aabb[3]) {
+            s->awake[b] = 1;
+            s->still[b] = 0.0;
+        }
+    }
+}
+
+int bc_any_moves(const bcContext *ctx) {
+    const bcWalls *walls = &ctx->m->walls;
+    for (int64_t k = 0; k < walls->count; k++)
+        if (walls->motion[k] != BC_FIXED) return 1;
+    return 0;
+}
+
+void bc_place_walls(const bcContext *ctx, double t, double h) {
+    const bcWalls *walls = &ctx->m->walls;
+    for (int64_t k = 0; k < walls->count; k++) {
+        int64_t motion = walls->motion[k];
+        if (motion == BC_FIXED) continue;
+        double *pose = ctx->s->static_pose + POSE * k;
+        double dx0 = pose[0], dy0 = pose[1], th0 = pose[2];
+        double next[3];
+        if (motion == BC_LOADED) {
+            /* s* = s + h V + h² F / M, along e */
+            double ex = walls->drive[3 * k + 1], ey = walls->drive[3 * k + 2];
+            pose[5] = pose[3];
+            pose[3] += h * pose[4] + h * h * walls->drive[3 * k] / walls->mass[k];
+            next[0] = pose[3] * ex;
+            next[1] = pose[3] * ey;
+            next[2] = 0.0;
+        } else {
+            pose_at(walls, k, t + h, next);
+        }
+        pose[0] = next[0];
+        pose[1] = next[1];
+        pose[2] = next[2];
+        place(ctx, k, dx0, dy0, th0, next[0], next[1], next[2], motion == BC_LOADED);
+        wake_near(ctx, k);
+    }
+}
+
+void bc_place_initial(const bcContext *ctx) {
+    const bcWalls *walls = &ctx->m->walls;
+    for (int64_t k = 0; k < walls->count; k++) {
+        if (walls->motion[k] == BC_FIXED) continue;
+        double at[3] = {0.0, 0.0, 0.0};
+        if (walls->motion[k] != BC_LOADED) pose_at(walls, k, 0.0, at);
+        double *pose = ctx->s->static_pose + POSE * k;
+        pose[0] = at[0];
+        pose[1] = at[1];
+        pose[2] = at[2];
+        place(ctx, k, at[0], at[1], at[2], at[0], at[1], at[2], walls->motion[k] == BC_LOADED);
+    }
+}
+
+void bc_yield_loaded_walls(const bcContext *ctx) {
+    const bcModel *m = ctx->m;
+    const bcWalls *walls = &m->walls;
+    bcState *s = ctx->s;
+    int64_t n = m->vertex_count;
+    double *pos = s->position, *wall_push = s->wall_push;
+    const int64_t *wall_of = s->wall_of;
+    for (int64_t k = 0; k < walls->count; k++) {
+        if (walls->motion[k] != BC_LOADED) continue;
+        double ex = walls->drive[3 * k + 1], ey = walls->drive[3 * k + 2];
+        /* a = Σ m D c, b = Σ m c² over the vertices it pushed, D c = Δx · e and c² = (D c)² / D² */
+        double a = 0.0, b = 0.0;
+        for (int64_t i = 0; i < n; i++) {
+            if (wall_of[i] == k) {
+                double px = wall_push[i], py = wall_push[n + i];
+                double d2 = px * px + py * py;
+                if (d2 > 0.0) {
+                    double mass = 1.0 / m->inv_mass[i];
+                    double pe = px * ex + py * ey; /* D c */
+                    a += mass * pe;
+                    b += mass * pe * pe / d2;
+                }
+            }
+        }
+        if (b == 0.0) continue;
+        double sigma = -a / (walls->mass[k] + b);
+        for (int64_t i = 0; i < n; i++) {
+            if (wall_of[i] == k) {
+                double px = wall_push[i], py = wall_push[n + i];
+                double d2 = px * px + py * py;
+                if (d2 > 0.0) { /* along n by σ c: σ (D c / D) (Δx / D) */
+                    double f = sigma * (px * ex + py * ey) / d2;
+                    pos[i] += f * px;
+                    pos[n + i] += f * py;
+                    bc_account(i, k, f * px, f * py, s->static_of, s->static_push, n);
+                }
+            }
+        }
+        double *pose = s->static_pose + POSE * k;
+        pose[3] += sigma;
+        pose[0] = pose[3] * ex;
+        pose[1] = pose[3] * ey;
+        /* placed anew at s from s0: the delta row keeps the substep's whole motion (from s at t) */
+        place(ctx, k, pose[5] * ex, pose[5] * ey, 0.0, pose[0], pose[1], 0.0, true);
+    }
+    for (int64_t i = 0; i < n; i++) {
+        if (s->wall_of[i] >= 0) {
+            s->wall_of[i] = -1;
+            wall_push[i] = wall_push[n + i] = 0.0;
+        }
+    }
+}
+
+/* J_b = Σ m v - Σ m (x - x_prev) / h over ring o..e (vertex mass m): what the substep's velocity stages gave
+ * the blob (the velocities read from the positions carry Σ m (x - x_prev) / h) */
+static inline void velocity_impulse(const bcState *s, int64_t n, double m, int64_t o, int64_t e, double h,
+                                    double *jx, double *jy) {
+    const double *pos = s->position, *prev = s->previous, *vel = s->velocity;
+    double x = 0.0, y = 0.0;
+    for (int64_t i = o; i < e; i++) {
+        x += m * (vel[i] - (pos[i] - prev[i]) / h);
+        y += m * (vel[n + i] - (pos[n + i] - prev[n + i]) / h);
+    }
+    *jx = x;
+    *jy = y;
+}
+
+/* The velocity stages (the velocity update's clamp and kinetic friction, stop_impact_velocities, restitution)
+ * change blob b's momentum by J_b (velocity_impulse); each of its contact vertices i takes the part D_i / D_b of
+ * it (its push depth over the blob's), for the collider that pushed it (half each for a vertex two colliders
+ * pushed this step). Without this the record holds the position pushes only, and a blob dropped on a floor at
+ * e = 0 would put several times its weight on the floor's record while it lies still (its bounce, taken back by
+ * restitution, recorded and the taking back not). Each blob writes only its own vertices' records. */
+void bc_record_contact_impulses(const bcContext *ctx, double h) {
+    const bcModel *m = ctx->m;
+    bcState *s = ctx->s;
+    int64_t n = m->vertex_count;
+    BC_PARALLEL_FOR(ctx->c->parallel)
+    for (int64_t b = 0; b < m->blob_count; b++) {
+        if (!s->awake[b]) continue;
+        int64_t o = m->offsets[b], e = m->offsets[b + 1];
+        double depth = 0.0;
+        for (int64_t i = o; i < e; i++) depth += s->contact_depth[i];
+        if (depth == 0.0) continue;
+        double mass = 1.0 / m->inv_mass[o];
+        double jx, jy;
+        velocity_impulse(s, n, mass, o, e, h, &jx, &jy);
+        for (int64_t i = o; i < e; i++) {
+            double D = s->contact_depth[i];
+            if (D == 0.0) continue;
+            bool both = s->static_of[n + i] >= 0;
+            for (int64_t slot = 0; slot < (both ? 2 : 1); slot++) {
+                int64_t k = s->static_of[slot * n + i];
+                if (k < 0 || m->walls.motion[k] == BC_LOADED) continue;
+                double part = D / depth * (both ? 0.5 : 1.0) * h / mass; /* recorded as a push: -m Σ Δx / h */
+                s->static_push[2 * slot * n + i] += part * jx;
+                s->static_push[(2 * slot + 1) * n + i] += part * jy;
+            }
+        }
+    }
+}
+
+/* The velocity-level impulses of the substep's static contacts (the velocity update's clamp and kinetic
+ * friction, stop_impact_velocities, restitution) act on a loaded wall too, shared as its pushes are.
+ *
+ * Those stages change blob b's momentum by J_b (velocity_impulse), as if every collider were fixed. The part
+ * s_b = D_b,k / D_b of it (its static contacts' depth on wall k over all of them) is wall k's, along n̄_b (the
+ * depth-weighted normal of its contacts on k), c_b = n̄_b · e. Left one-sided, a light wall that jiggles under its
+ * load has its approaches stopped by the blobs and never feels it. Shared like the pushes, the wall's velocity
+ * changes by ΔV and each blob follows it by ΔV s_b c_b n̄_b, so that momentum along e is kept:
+ *     M ΔV + Σ s_b J_b · e + ΔV Σ m_b s_b c_b² = 0  =>  ΔV = -Σ s_b J_b · e / (M + Σ m_b s_b c_b²).
+ * The blobs' impulse on the wall, -(s_b J_b + m_b ΔV s_b c_b n̄_b), is recorded at b's deepest vertex on it.
+ * Serial: the sums over blobs are in blob order. */
+void bc_react_loaded_walls(const bcContext *ctx, double h) {
+    const bcModel *m = ctx->m;
+    const bcWalls *walls = &m->walls;
+    bcState *s = ctx->s;
+    bcScratch *w = ctx->w;
+    int64_t n = m->vertex_count, B = m->blob_count;
+    double *share = w->wall_share, *normal = w->wall_normal, *impulse = w->wall_impulse; /* s_b, n̄_b, s_b J_b */
+    int64_t *deepest = w->wall_deepest;
+    for (int64_t b = 0; b < B; b++) {
+        share[b] = 0.0;
+        normal[2 * b] = normal[2 * b + 1] = 0.0;
+        impulse[2 * b] = impulse[2 * b + 1] = 0.0;
+        deepest[b] = -1;
+    }
+    for (int64_t k = 0; k < walls->count; k++) {
+        if (walls->motion[k] != BC_LOADED) continue;
+        double ex = walls->drive[3 * k + 1], ey = walls->drive[3 * k + 2];
+        double along = 0.0, heavy = 0.0; /* Σ s_b J_b · e, Σ m_b s_b c_b² */
+        for (int64_t b = 0; b < B; b++) {
+            share[b] = 0.0;
+            if (!s->awake[b]) continue;
+            int64_t o = m->offsets[b], e = m->offsets[b + 1];
+            double total = 0.0, on_k = 0.0, nx = 0.0, ny = 0.0, most = 0.0;
+            for (int64_t i = o; i < e; i++) {
+                double D = s->contact_depth[i];
+                total += D;
+                if (D > 0.0 && (s->static_of[i] == k || s->static_of[n + i] == k)) {
+                    on_k += D;
+                    nx += D * s->contact_normal[i];
+                    ny += D * s->contact_normal[n + i];
+                    if (D > most) {
+                        most = D;
+                        deepest[b] = i;
+                    }
+                }
+            }
+            double length = sqrt(nx * nx + ny * ny);
+            if (on_k == 0.0 || length == 0.0) continue;
+            double mass = 1.0 / m->inv_mass[o];
+            double jx, jy;
+            velocity_impulse(s, n, mass, o, e, h, &jx, &jy);
+            share[b] = on_k / total;
+            normal[2 * b] = nx / length;
+            normal[2 * b + 1] = ny / length;
+            impulse[2 * b] = share[b] * jx;
+            impulse[2 * b + 1] = share[b] * jy;
+            double c = normal[2 * b] * ex + normal[2 * b + 1] * ey;
+            along += impulse[2 * b] * ex + impulse[2 * b + 1] * ey;
+            heavy += mass * (double)(e - o) * share[b] * c * c;
+        }
+        if (along == 0.0) continue;
+        double dV = -along / (walls->mass[k] + heavy);
+        s->static_pose[POSE * k + 4] += dV;
+        for (int64_t b = 0; b < B; b++) {
+            if (share[b] == 0.0) continue;
+            int64_t o = m->offsets[b], e = m->offsets[b + 1];
+            double c = normal[2 * b] * ex + normal[2 * b + 1] * ey;
+            double fx = dV * share[b] * c * normal[2 * b], fy = dV * share[b] * c * normal[2 * b + 1];
+            for (int64_t i = o; i < e; i++) {
+                s->velocity[i] += fx;
+                s->velocity[n + i] += fy;
+            }
+            int64_t i = deepest[b];
+            if (i < 0) continue; /* (share[b] > 0 came from a contact on k: its deepest vertex is known) */
+            double mb = (double)(e - o) / m->inv_mass[o], mi = 1.0 / m->inv_mass[i];
+            /* recorded as a push: bc_account_contacts reads -m Σ Δx / h */
+            bc_account(i, k, (impulse[2 * b] + mb * fx) * h / mi, (impulse[2 * b + 1] + mb * fy) * h / mi,
+                       s->static_of, s->static_push, n);
+        }
+    }
+}
+
+void bc_finish_loaded_walls(const bcContext *ctx, double h) {
+    const bcWalls *walls = &ctx->m->walls;
+    for (int64_t k = 0; k < walls->count; k++) {
+        if (walls->motion[k] == BC_LOADED) {
+            double *pose = ctx->s->static_pose + POSE * k;
+            pose[4] = (pose[3] - pose[5]) / h; /* V = (s - s_start) / h */
+        }
+    }
+}
+
+/* The impulses of the blobs on each collider over the step, -m Σ Δx / h (N s: the pushes of all its substeps,
+ * each of length h), and their moments about its pivot where it is at the step's end (N m s), as
+ * impulse[k] = (Jx, Jy, L); clear the vertices' records. Once a step, serial, in vertex order. */
+void bc_account_contacts(const bcContext *ctx, double h) {
+    const bcModel *m = ctx->m;
+    const bcWalls *walls = &m->walls;
+    bcState *s = ctx->s;
+    int64_t n = m->vertex_count;
+    double *impulse = s->static_impulse;
+    for (int64_t k = 0; k < 3 * walls->count; k++) impulse[k] = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+        for (int64_t slot = 0; slot < 2; slot++) {
+            int64_t k = s->static_of[slot * n + i];
+            if (k < 0) continue;
+            double mass = 1.0 / m->inv_mass[i];
+            double *push = s->static_push + 2 * slot * n + i; /* x at push[0], y at push[n] */
+            double jx = -mass * push[0] / h, jy = -mass * push[n] / h;
+            const double *pose = s->static_pose + POSE * k;
+            double rx = s->position[i] - (walls->pivot[2 * k] + pose[0]);
+            double ry = s->position[n + i] - (walls->pivot[2 * k + 1] + pose[1]);
+            impulse[3 * k] += jx;
+            impulse[3 * k + 1] += jy;
+            impulse[3 * k + 2] += rx * jy - ry * jx;
+            s->static_of[slot * n + i] = -1;
+            push[0] = push[n] = 0.0;
+        }
+    }
+}
