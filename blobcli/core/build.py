@@ -139,7 +139,9 @@ def build_in_place() -> Path:
     with tempfile.TemporaryDirectory() as tmp:
         built = Path(builder.compile(tmpdir=tmp, verbose=False))
         target = HERE / built.name
-        shutil.copy2(built, target)
+        staged = target.with_name(target.name + ".new")
+        shutil.copy2(built, staged)
+        os.replace(staged, target)  # a new file: a process that has the old one loaded keeps it
     return target
 
 

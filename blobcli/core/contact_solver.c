@@ -543,6 +543,13 @@ static void contact_impulse(const double *vel, int64_t n, int64_t p, int64_t e0,
     *jy = -(approach * ny + cut * ty) * scale;
 }
 
+/* Whether slot c of vertex p holds a contact that pushed this substep. A blob whose contacts are found
+ * again after a push keeps the slot's hit while the slot may have found no edge (c_edge -1): such a slot
+ * holds no contact. */
+static inline bool pushed_contact(const Contacts *cs, int64_t c, int64_t p) {
+    return cs->c_hit[c * cs->n + p] != 0 && cs->c_edge[c * cs->n + p] >= 0;
+}
+
 /* Contact velocities between blobs: at every contact that pushed this substep (c_hit), the relative velocity
  * of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q, loses its approach along
  * the normal n of its last push (u · n < 0: one-sided, as the push) and its tangential part u_t by Coulomb's
@@ -576,7 +583,7 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
         int64_t count = 0;
         if (cs.awake[a])
             for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++)
-                for (int64_t c = 0; c < CPV; c++) count += cs.c_hit[c * n + p] != 0;
+                for (int64_t c = 0; c < CPV; c++) count += pushed_contact(&cs, c, p);
         first[a + 1] = count;
     }
     for (int64_t a = 0; a < B; a++) first[a + 1] += first[a];
@@ -588,7 +595,7 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
         int64_t i = first[a];
         for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++) {
             for (int64_t c = 0; c < CPV; c++) {
-                if (cs.c_hit[c * n + p] != 0) {
+                if (pushed_contact(&cs, c, p)) {
                     int64_t e0 = cs.c_edge[c * n + p], b = cs.blob_of[e0];
                     which[i] = p;
                     which[K + i] = e0;

@@ -148,11 +148,11 @@ static void find_touching(const bcContext *ctx, uint8_t *pushed, uint8_t *touchi
     for (int64_t a = 0; a < m->blob_count; a++) {
         for (int64_t p = offsets[a]; p < offsets[a + 1]; p++) {
             for (int64_t c = 0; c < BC_CONTACTS_PER_VERTEX; c++) {
-                if (c_hit[c * n + p] != 0) {
-                    /* a contact that pushed in an earlier iteration keeps its c_hit when the narrow phase finds it
-                     * again and finds no edge (c_edge -1): numba reads blob_of[-1] as the last vertex's blob */
-                    int64_t edge = c_edge[c * n + p];
-                    int64_t other = blob_of[edge < 0 ? edge + n : edge];
+                /* a contact that pushed in an earlier iteration keeps its c_hit when the narrow phase finds its
+                 * blob's contacts again and this slot finds no edge (c_edge -1): then it holds no contact */
+                int64_t edge = c_edge[c * n + p];
+                if (c_hit[c * n + p] != 0 && edge >= 0) {
+                    int64_t other = blob_of[edge];
                     for (int64_t j = start[a]; j < start[a + 1]; j++) { /* a blob has a few partners */
                         if (partner[j] == other) {
                             pushed[j] = 1;

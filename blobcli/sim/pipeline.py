@@ -410,12 +410,12 @@ def compile_step(state: State, model: Model, step_settings: StepSettings, announ
         kernel(*args)
 
 
-CORE_STEP = "BLOBSIM_STEP"  # environment: "c", the compiled core's step (blobcli/core) instead of numba's
+CORE_STEP = "BLOBSIM_STEP"  # environment: "numba", numba's step instead of the compiled core's (blobcli/core)
 
 
 def core_step_chosen() -> bool:
-    """Whether `advance` runs the compiled core's step (BLOBSIM_STEP=c)."""
-    return os.environ.get(CORE_STEP) == "c"
+    """Whether `advance` runs the compiled core's step (unless BLOBSIM_STEP=numba)."""
+    return os.environ.get(CORE_STEP, "c") != "numba"
 
 
 class _CoreCall:
