@@ -248,18 +248,16 @@ def cmd_run(args) -> int:
     from .io import interrupts
     from .io.run import simulate
     with interrupts.deferred():  # a signal now would only cut the summary: the file is whole either way
-        from .io.notice import announcer
         live = not args.quiet and sys.stderr.isatty()
-        result = simulate(scene, output, progress=live, resume=args.resume,
-                          announce=None if args.quiet else announcer(live), threads=args.threads)
+        result = simulate(scene, output, progress=live, resume=args.resume, threads=args.threads)
         interrupts.clear()
         if result.message:
             print(f"blobsim: {result.message}", file=sys.stderr)
         print(result.summary())
     if rerun and result.written:
-        # Written from the finished file, not during the run: rerun's encoder threads slowed
-        # the numba kernels 7× on two cores. An interrupted run's file holds every frame up
-        # to the stop, so its recording does too.
+        # Written from the finished file, not during the run: rerun's encoder threads take the
+        # cores the step's threads run on. An interrupted run's file holds every frame up to the
+        # stop, so its recording does too.
         from .io.recording import replay
         frames = replay(result.path, rerun)
         print(f"blobsim: recorded {frames} frames into {rerun}")
@@ -427,7 +425,6 @@ def _export_wrote(sidecar, out) -> bool:
 def cmd_sweep(args) -> int:
     from pathlib import Path
 
-    from .io.notice import announcer
     from .scene.schema import SceneError
     from .tools import sweep as sw
     try:
@@ -440,8 +437,7 @@ def cmd_sweep(args) -> int:
         return _fail(problems)
     live = not args.quiet and sys.stderr.isatty()
     rows, interrupted = sw.run_sweep(sweep, out, args.scheduler, args.workers, progress=live,
-                                     announce=lambda line: print(line, file=sys.stderr),
-                                     compiling=None if args.quiet else announcer(live))
+                                     announce=lambda line: print(line, file=sys.stderr))
     summary = sw.write_summary(sweep, rows, out)
     sw.chart(sweep, rows, out / "summary.png", args.metrics)
     ok = sum(r["status"] == "ok" for r in rows.values())
@@ -454,7 +450,6 @@ def cmd_sweep(args) -> int:
 def cmd_jam(args) -> int:
     from pathlib import Path
 
-    from .io.notice import announcer
     from .scene.schema import SceneError, load_scene
     from .tools import jam as jm
     try:
@@ -470,8 +465,7 @@ def cmd_jam(args) -> int:
         return _fail(problems)
     live = not args.quiet and sys.stderr.isatty()
     rows, interrupted = jm.run_jam(scene, out, args.seeds, args.pressure, args.scheduler, args.workers,
-                                   progress=live, announce=lambda line: print(line, file=sys.stderr),
-                                   compiling=None if args.quiet else announcer(live))
+                                   progress=live, announce=lambda line: print(line, file=sys.stderr))
     figures = jm.summary(rows)
     jm.write_json(figures, out / "summary.json")
     if args.json:

@@ -4,7 +4,7 @@ reads, its outline for drawing, and how deep a point lies inside it.
 Everything that knows about collider kinds reads this table: scene validation (the keys),
 the model builder (kernel rows and bounding boxes), the recording and the filmstrip (the
 outline) and the stress detectors (the depth). The solver kernels themselves live in
-`blobcli.sim.statics`, one per `solver` name, all with one signature, run by its `collide_statics`.
+blobcli/core/statics.c, one per `solver` name, all run by its `bc_collide_statics`.
 
 Kernel rows, 4 float64 each: plane (px, py, nx, ny) with unit n out of the solid side;
 circle (cx, cy, r, inside: 1 for a container, solid outside the circle, else 0); segment and
@@ -26,7 +26,7 @@ from .geometry import depth_inside_polygon, signed_area
 @dataclass(frozen=True)
 class ColliderKind:
     keys: tuple[str, ...]  # geometry keys of its [[static]] table (all required, except box.angle)
-    solver: str  # the kernel in blobcli.sim.statics that runs it
+    solver: str  # the solver in blobcli/core/statics.c that runs it
     rows: Callable  # StaticDef -> (kernel rows (r, 4), aabb [xmin, ymin, xmax, ymax])
     outline: Callable  # (StaticDef, extent m) -> closed polyline (k, 2); a plane is cut at ±extent
     depth: Callable  # (points (M, 2), StaticDef) -> (M,) m inside it (0 outside; a segment has no inside)

@@ -1,8 +1,8 @@
 """Polygon geometry in plain Python and numpy, at the bottom of the import graph.
 
 Scene validation, the model builder, the stress detectors and the tests read polygons
-through these functions; the solver's numba kernels use the same formulas, inlined, from
-`blobcli.sim.ring`. A ring is a closed polygon: vertex i joins the next vertex of its ring,
+through these functions; the compiled step uses the same formulas, inlined, from
+blobcli/core/ring.h. A ring is a closed polygon: vertex i joins the next vertex of its ring,
 and the last joins the first. Blob b owns rows offsets[b]:offsets[b+1] of a position array.
 """
 

@@ -3,11 +3,9 @@ with what it bounds; tests take test *inputs* (a compare --atol to exercise, a d
 
 import contextlib
 import io
-import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -17,7 +15,6 @@ import pytest
 
 from blobcli import build, build_params, parse_scene, step
 from blobcli.geometry import first_crossing, signed_area
-from blobcli.sim import pipeline
 from blobcli.tools.dynamics import deepest_overlap  # noqa: F401 (for the tests: the figure the docs quote)
 
 # Tolerances, with what they bound.
@@ -64,22 +61,8 @@ GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
-    config.addinivalue_line("markers", "own_builds: run each scene's own build of the step, not the one for every collider kind")
     config.addinivalue_line("markers", "alone: a timing bound that holds with no other test running beside it (CI runs "
                             "these by themselves: pytest -m 'slow and alone' -n 0)")
-
-
-# The tests, and the runs they start as real processes, share one build of the step per area method and box
-# (pipeline.shared_build: the same bits, tested in test_builds.py), so that the suite compiles a few builds on a
-# cold numba cache, not one per mix of colliders, walls, sleeping and blob count. Tests marked own_builds run
-# each scene's own build.
-os.environ[pipeline.SHARED_BUILD] = "1"
-
-
-@pytest.fixture(autouse=True)
-def each_scene_its_own_build_where_marked(request, monkeypatch):
-    if request.node.get_closest_marker("own_builds") is not None:
-        monkeypatch.delenv(pipeline.SHARED_BUILD)
 
 
 def scene(text: str):
@@ -121,73 +104,6 @@ normal = [0.0, 1.0]
 """
 
 
-# scenes test_builds.py runs on their own builds, compiled before the slow tier's tests (SHARED_BUILDS): one blob
-# alone, no collider, sleeping off; two blobs meeting across the edge x = ±2 of a periodic box (test_periodic's PAIR)
-ALONE = "[scene]\nsleep = false\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n"
-ACROSS = """[scene]
-gravity = [0.0, 0.0]
-periodic = [4.0, 3.0]
-[[blob]]
-center = [1.4, 0.05]
-radius = 0.4
-velocity = [2.0, 0.0]
-angular_velocity = 1.0
-[[blob]]
-center = [-1.4, -0.05]
-radius = 0.3
-mass = 0.6
-velocity = [-2.0, 0.5]
-"""
-
-
-# The builds most tests share, compiled before the tests fan out to one process per core (as a sweep compiles
-# before it fans out), so that the workers load them instead of compiling one build at the same time: for each
-# tier, two lanes of about equal work, run side by side; a lane runs its processes one after the other, each
-# given scene texts or shipped scenes and whether it compiles their own builds (not the shared build).
-_BLOB = "[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.3\n"
-_SCENES = Path(__file__).resolve().parent.parent / "scenes"
-SHARED_BUILDS = {
-    # kot's shared build (pipeline.shared_build: it serves the periodic box too, so the second scene loads it);
-    # test_builds.py's own one-blob build, then gas's shared build
-    "not slow": ([([_BLOB + FLOOR, "[scene]\nperiodic = [4.0, 4.0]\n" + _BLOB + "grid = [2, 1]\nspacing = [0.8, 0.8]\n"],
-                   False)],
-                 [(["[scene]\nduration = 0.1\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR], True),
-                  (['[scene]\nmethod = "gas"\n' + _BLOB], False)]),
-    # the parallel build (kot's shared one: the three scenes share it), in one process: two processes compiling
-    # one parallel build at once can leave cache files that crash every later load (numba issue #10128); beside
-    # it, the own builds test_builds.py compares and the shared builds test_stress.py runs
-    "slow": ([([str(_SCENES / name) for name in ("pile.toml", "periodic.toml", "jamming/bidisperse.toml")], False)],
-             [([str(_SCENES / name) for name in ("drum.toml", "press.toml", "piston.toml")], True),
-              ([(_SCENES / "press.toml").read_text().replace("[scene]", "[scene]\nsleep = false", 1), ALONE, ACROSS],
-               True),
-              # the other area methods' shared builds, for test_stress.py (gas's is the fast tier's)
-              ([f'[scene]\nmethod = "{method}"\n' + _BLOB for method in ("xpbd", "springs")], False)]),
-}
-
-
-def pytest_sessionstart(session):
-    """Before xdist starts its worker processes (its own hook runs last): compile this tier's SHARED_BUILDS
-    (with them warm this costs a Python start per process)."""
-    config = session.config
-    if hasattr(config, "workerinput") or (config.getoption("numprocesses", None) or 0) < 2:
-        return
-    code = "import sys; from blobcli import load_scene, parse_scene; from blobcli.io.run import compile_scenes; " \
-           "compile_scenes([load_scene(a) if a.endswith('.toml') else parse_scene(a, 'shared') for a in sys.argv[1:]])"
-    own_env = {k: v for k, v in os.environ.items() if k != pipeline.SHARED_BUILD}
-    markexpr = config.getoption("markexpr")
-    tier = "slow" if markexpr.startswith("slow") else markexpr  # -m slow, -m 'slow and not alone'
-
-    def run_lane(lane):
-        for scenes, own in lane:
-            subprocess.run([sys.executable, "-c", code, *scenes], env=own_env if own else None)
-
-    lanes = [threading.Thread(target=run_lane, args=(lane,)) for lane in SHARED_BUILDS.get(tier, ())]
-    for lane in lanes:
-        lane.start()
-    for lane in lanes:
-        lane.join()
-
-
 @pytest.fixture
 def tmp_out(tmp_path):
     return tmp_path / "out.h5"
@@ -195,8 +111,7 @@ def tmp_out(tmp_path):
 
 def start_run(args, out: Path, min_bytes: int = 1 << 20, timeout: float = 300.0) -> subprocess.Popen:
     """Start `blobsim run ARGS -o OUT -q` and return once its .partial file has grown past
-    min_bytes, i.e. at least one block of frames is computed and on disk (polled, not slept). The timeout
-    allows for a cold numba cache: the parallel step compiles for over a minute on 2 cores."""
+    min_bytes, i.e. at least one block of frames is computed and on disk (polled, not slept)."""
     proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", *map(str, args), "-o", str(out), "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     partial = Path(str(out) + ".partial")
@@ -236,3 +151,21 @@ def blobsim(*args, env=None, cwd=None):
         return SimpleNamespace(returncode=code, stdout=out, stderr=err)
     return subprocess.run([sys.executable, "-m", "blobcli", *map(str, args)], capture_output=True, text=True,
                           timeout=300, env=env, cwd=cwd)
+
+
+class Stage:
+    """A compiled stage called from a test on a scene's model and state (blobcli.core.Views): `call(name, *args)`
+    runs lib.bc_<name>(context, *args). `arrays` replace the model's (a ModelArrays, e.g. with another
+    target_area); `step_settings` (pipeline.settings) fill bcSettings; the scratch is allocated when asked."""
+
+    def __init__(self, model, state, arrays=None, step_settings=None, scratch=False, parallel=False):
+        from blobcli.core import Views, load
+        self.ffi, self.lib = load()
+        self.views = Views(self.ffi, model.arrays if arrays is None else arrays, state, step_settings, parallel)
+        self.scratch = None
+        if scratch:
+            self.scratch = self.ffi.gc(self.lib.bc_scratch_new(self.views.model), self.lib.bc_scratch_free)
+            self.views.context.w = self.scratch
+
+    def call(self, name, *args):
+        return getattr(self.lib, f"bc_{name}")(self.views.context, *args)

@@ -13,13 +13,15 @@ HASH_SCENE, HASH_STEPS = "pile", 240  # chaotic: 120 blobs tumbling into a pile
 
 
 def version_key() -> str:
-    """Bit-identical results are promised for the same machine and versions: the hash's key."""
+    """Bit-identical results are promised for the same machine, compiler and numpy (the model's arrays): the
+    hash's key."""
     import platform
 
-    import llvmlite
-    import numba
     import numpy
-    return f"{platform.machine()} numba {numba.__version__} llvmlite {llvmlite.__version__} numpy {numpy.__version__}"
+
+    from blobcli.core import load
+    ffi, lib = load()
+    return f"{platform.machine()} {ffi.string(lib.bc_compiler()).decode()} numpy {numpy.__version__}"
 
 
 def final_positions_hash(scene_name: str, steps: int) -> str:

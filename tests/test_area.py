@@ -1,12 +1,12 @@
-"""The exact area projection ("kot"): random and degenerate polygons, both windings."""
+"""The exact area projection ("kot", core/area.c: bc_area_kot): random and degenerate polygons, both windings."""
 
 import numpy as np
 import pytest
-from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, PROJECTION_ROUNDOFF, polygon_area
+from conftest import AREA_ROUNDOFF, MOMENTUM_ROUNDOFF, PROJECTION_ROUNDOFF, Stage, polygon_area, scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from blobcli.sim.area import area_kot
+from blobcli import build
 
 
 def star_polygon(rng, n, wobble):
@@ -17,11 +17,16 @@ def star_polygon(rng, n, wobble):
 
 
 def project(points, target, inv_mass=None):
-    pos = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)  # (2, n), as the kernels read it
-    n = pos.shape[1]
-    inv_mass = np.ones(n) if inv_mass is None else inv_mass
-    area_kot(pos, inv_mass, np.array([0, n], dtype=np.int64), np.ones(1, np.uint8), np.array([target]))
-    return pos.T
+    """The polygon `points` (n, 2) after bc_area_kot, as one blob of n vertices with these inverse masses (unit by
+    default) and target area: the positions are the state's (2, n), as the core reads them."""
+    points = np.asarray(points, dtype=np.float64)
+    n = len(points)
+    model, state = build(scene(f"[[blob]]\ncenter = [0.0, 0.0]\nradius = 1.0\nvertices = {n}\n"))
+    state.position[...] = points.T
+    inv_mass = np.ones(n) if inv_mass is None else np.ascontiguousarray(inv_mass, dtype=np.float64)
+    arrays = model.arrays._replace(inv_mass=inv_mass, target_area=np.array([float(target)]))
+    Stage(model, state, arrays=arrays).call("area_kot")
+    return state.position.T.copy()
 
 
 @settings(max_examples=200, deadline=None)

@@ -1,8 +1,8 @@
 """Blob–blob collisions: momentum, symmetry, piles, stacks, heavy loads, overlap recovery."""
 
 from pathlib import Path
+from types import SimpleNamespace
 
-import numba
 import numpy as np
 import pytest
 from conftest import (
@@ -18,6 +18,7 @@ from conftest import (
     REST_CREEP,
     SEPARATION_MOMENTUM,
     STACK_REST_VERTEX,
+    Stage,
     deepest_overlap,
     momentum,
     scene,
@@ -29,16 +30,11 @@ from hypothesis import strategies as st
 
 import blobcli.sim.model
 from blobcli import blob_measures, build, build_params, load_scene, step
-from blobcli.jit import parallel
-from blobcli.sim.collide import (
-    BLOBS_PER_STRIP,
-    MAX_STRIPS,
-    _find_pairs,
-    _near_convex_corner,
-    _strips,
-)
+from blobcli.core import load
+from blobcli.sim import pipeline
 
 ROOT = Path(__file__).resolve().parent.parent
+BROAD_MARGIN = 0.25  # core/broad_phase.c: pairs closer than r_a + r_b + this × the larger radius are listed
 
 
 def fmt(points):
@@ -103,8 +99,9 @@ def test_a_frictionless_head_on_pair_stays_its_own_mirror_image_about_its_axis()
 
 
 def _push_at_corner(ring, e0, x, y):
-    """What _contact_push does with a vertex at (x, y) inside the counter-clockwise ring, kept on edge e0:
-    the edge's t, outward normal n and C = (p - q) · n, then the turn near a convex corner: (e0, e1, t, n, C)."""
+    """What contact_push (core/contact_solver.c) does with a vertex at (x, y) inside the counter-clockwise ring, kept
+    on edge e0: the edge's t, outward normal n and C = (p - q) · n, then the turn near a convex corner: (e0, e1, t,
+    n, C)."""
     pos = np.ascontiguousarray(ring.T)
     n = len(ring)
     e1 = (e0 + 1) % n
@@ -116,10 +113,15 @@ def _push_at_corner(ring, e0, x, y):
     return _corner_push(pos, 1.0, 0, n, e0, e1, t, nx, ny, C, x, y)
 
 
-@numba.njit
 def _corner_push(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py):
-    """_near_convex_corner, from Python (a helper has no Python entry: jit.inline_kernel)."""
-    return _near_convex_corner(pos, orient, o, e, e0, e1, t, nx, ny, C, px, py)
+    """bc_near_convex_corner (core/contact_solver.c) on positions pos (2, N): its (e0, e1, t, nx, ny, C)."""
+    ffi, lib = load()
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    out = [ffi.new("int64_t *", int(e0)), ffi.new("int64_t *", int(e1))]
+    out += [ffi.new("double *", float(v)) for v in (t, nx, ny, C)]
+    lib.bc_near_convex_corner(ffi.cast("double *", pos.ctypes.data), pos.shape[1], float(orient), o, e, *out,
+                              float(px), float(py))
+    return tuple(v[0] for v in out)
 
 
 def test_a_push_near_a_convex_corner_turns_smoothly_through_its_bisector():
@@ -240,12 +242,48 @@ def random_blobs(seed, blobs, spread):
     return rng.uniform(0, spread, (blobs, 2)), rng.uniform(0.1, 1.0, blobs)
 
 
+def broad_phase(center, radius, parallel=False):
+    """bc_find_blob_pairs (core/broad_phase.c) over blobs with about these centres (B, 2) and radii (B,): each blob
+    a square ring of 4 vertices at that radius, whose mean and farthest vertex the broad phase takes as its centre
+    and radius (state.center, state.radius: what the pairs are found from, returned). The scratch's pair buffers
+    (pairs, partner, partner_pair) are swapped for ones that hold every pair, B (B - 1) / 2, so that no pair count
+    is past the capacity (the step's own holds PAIRS_PER_BLOB B), and put back after. `parallel`: the stage's
+    parallel build (bcSettings.parallel, on the library's threads). Returns the pairs (P, 2) and the strips
+    (strip_count, strip_of, strip_start, strip_blobs, crossing, far), copied out of the scratch."""
+    blobs = len(radius)
+    text = "".join(f"[[blob]]\ncenter = [{3.0 * k}, 0.0]\nradius = 0.5\nvertices = 4\n" for k in range(blobs))
+    sc = scene("[scene]\ngravity = [0.0, 0.0]\n" + text)
+    model, state = build(sc)
+    square = np.array([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, -1.0]])
+    state.position[...] = (center.T[:, :, None] + radius[None, :, None] * square[:, None, :]).reshape(2, 4 * blobs)
+    stage = Stage(model, state, step_settings=pipeline.settings(model, build_params(sc)), scratch=True,
+                  parallel=parallel)
+    w, capacity = stage.scratch, max(1, blobs * (blobs - 1) // 2)
+    buffers = {name: np.zeros(2 * capacity, np.int64) for name in ("pairs", "partner", "partner_pair")}
+    kept = {name: getattr(w, name) for name in buffers}, w.pair_capacity
+    try:
+        for name, buffer in buffers.items():
+            setattr(w, name, stage.ffi.cast("int64_t *", buffer.ctypes.data))
+        w.pair_capacity = capacity
+        count = stage.call("find_blob_pairs")
+        assert count == w.pair_count  # every pair listed
+        pairs = buffers["pairs"][:2 * count].reshape(count, 2).copy()
+        k = w.strip_count
+        strips = SimpleNamespace(count=k, strip_of=np.array(stage.ffi.unpack(w.strip_of, blobs)),
+                                 start=np.array(stage.ffi.unpack(w.strip_start, k + 1)),
+                                 members=np.array(stage.ffi.unpack(w.strip_blobs, blobs)),
+                                 crossing=np.array(stage.ffi.unpack(w.crossing, blobs)), far=bool(w.far))
+    finally:
+        for name, pointer in kept[0].items():
+            setattr(w, name, pointer)
+        w.pair_capacity = kept[1]
+    return pairs, strips, state.center.copy(), state.radius.copy()
+
+
 @settings(max_examples=50, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), blobs=st.integers(2, 300), spread=st.floats(1.0, 200.0))
 def test_broad_phase_finds_exactly_the_close_pairs(seed, blobs, spread):
-    center, radius = random_blobs(seed, blobs, spread)
-    pairs, _ = _find_pairs(center, radius, 10**9)
-    from blobcli.sim.collide import BROAD_MARGIN
+    pairs, _, center, radius = broad_phase(*random_blobs(seed, blobs, spread))
     expected = set()
     for a in range(blobs):
         for b in range(a + 1, blobs):
@@ -256,18 +294,16 @@ def test_broad_phase_finds_exactly_the_close_pairs(seed, blobs, spread):
     assert len(pairs) == len(expected)
 
 
-@pytest.mark.slow  # compiles a parallel build
+@pytest.mark.slow
 @settings(max_examples=50, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), blobs=st.integers(2, 300), spread=st.floats(1.0, 200.0))
 def test_the_parallel_broad_phase_finds_the_pairs_in_the_serial_builds_order(seed, blobs, spread):
     center, radius = random_blobs(seed, blobs, spread)
-    np.testing.assert_array_equal(parallel(_find_pairs)(center, radius, 10**9)[0],
-                                  _find_pairs(center, radius, 10**9)[0])
+    np.testing.assert_array_equal(broad_phase(center, radius, parallel=True)[0], broad_phase(center, radius)[0])
 
 
-@pytest.mark.own_builds  # (the shared build runs them, over no pairs)
 def test_collision_stages_do_not_run_with_one_blob():
-    sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR)  # (test_builds.py's one-blob build)
+    sc = scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n" + FLOOR)
     model, state = build(sc)
     clock = {}
     step(state, model, build_params(sc), clock)
@@ -295,11 +331,14 @@ def test_serial_and_parallel_stage_builds_give_the_same_bits(monkeypatch):
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 700))
 def test_resolution_strips_partition_the_blobs_by_x(seed, blobs):
+    """The strips bc_find_blob_pairs cuts for the resolution, and how far apart each blob's partners are in them,
+    over the pairs it finds: blobs of radii up to 1 m in 10 m, so that with many strips some pairs span
+    neighbouring strips and some two or more (far)."""
+    _, lib = load()
     rng = np.random.default_rng(seed)
-    center = rng.uniform(-5.0, 5.0, (blobs, 2))
-    pairs = np.sort(rng.integers(0, blobs, (blobs, 2)), axis=1)
-    strip_of, start, members, crossing, far = _strips(center, pairs)
-    assert len(start) - 1 == max(1, min(MAX_STRIPS, blobs // BLOBS_PER_STRIP))
+    pairs, strips, center, _ = broad_phase(rng.uniform(-5.0, 5.0, (blobs, 2)), rng.uniform(0.05, 1.0, blobs))
+    strip_of, start, members, crossing, far = strips.strip_of, strips.start, strips.members, strips.crossing, strips.far
+    assert len(start) - 1 == strips.count == max(1, min(lib.BC_MAX_STRIPS, blobs // lib.BC_BLOBS_PER_STRIP))
     assert sorted(members) == list(range(blobs))  # every blob in exactly one strip ...
     for s in range(len(start) - 1):
         inside = members[start[s]:start[s + 1]]

@@ -27,6 +27,7 @@ from conftest import (
     ROLL_SLIDE,
     SPIN_KEPT,
     STATIC_PENETRATION,
+    Stage,
     com,
     momentum,
     scene,
@@ -38,7 +39,7 @@ from hypothesis import strategies as st
 
 from blobcli import blob_measures, build, build_params, load_scene, step
 from blobcli.geometry import depth_inside_polygon, first_crossing
-from blobcli.sim.integrate import SAG, rows_stacked, substeps_for
+from blobcli.sim import pipeline
 from blobcli.sim.pipeline import advance
 from blobcli.tools.stress import STRESS_DIR as STRESS_SCENES
 
@@ -169,21 +170,32 @@ def test_a_step_too_coarse_for_its_blobs_takes_more_substeps():
 
 
 def test_the_sag_bound_counts_the_blobs_stacked():
-    """integrate.rows_stacked, from positions alone: a column of 16 blobs, each resting on the one below, counts 16;
-    the same blobs side by side count 1, and so does the column seen with gravity along it sideways. substeps_for
-    then asks ⌈dt √(n g / (SAG L))⌉ for the column at rest, 5 against the row's 4 (docs/physics.md, "Substeps": the
-    1,000-blob pile's ~25 rows take 6 and come to rest)."""
+    """bc_rows_stacked (core/integrate.c), from positions alone: a column of 16 blobs, each resting on the one below,
+    counts 16; the same blobs side by side count 1, and so does the column seen with gravity along it sideways.
+    bc_substeps_for then asks ⌈dt √(n g / (SAG L))⌉ for the column at rest, 5 against the row's 4 (docs/physics.md,
+    "Substeps": the 1,000-blob pile's ~25 rows take 6 and come to rest)."""
+    SAG = 0.05  # core/integrate.c: the sag under gravity a substep may let a blob have, × its shortest mean edge
+
     def blobs(centres):
-        return build(scene("[scene]\n" + "".join(
-            f"[[blob]]\ncenter = [{x}, {y}]\nradius = 0.2\nvertices = 32\n" for x, y in centres)))
+        sc = scene("[scene]\n" + "".join(
+            f"[[blob]]\ncenter = [{x}, {y}]\nradius = 0.2\nvertices = 32\n" for x, y in centres))
+        model, state = build(sc)
+        return model, state, pipeline.settings(model, build_params(sc))
+
+    def stage(model, state, step_settings, up, dt=1.0 / 60.0, least=4, most=16):
+        """The stages' context with up, dt and the least and most substeps set (the scene's gravity is -y)."""
+        context = Stage(model, state, step_settings=step_settings, scratch=True)
+        c = context.views.settings
+        c.up_x, c.up_y, c.dt, c.substeps, c.most_substeps = *up, dt, least, most
+        return context
+
     dt, g = 1.0 / 60.0, 9.81
     column = blobs([(0.0, 0.2 + 0.4 * k) for k in range(16)])
     row = blobs([(0.4 * k, 0.2) for k in range(16)])
-    for (model, state), up, rows in ((column, (0.0, 1.0), 16), (row, (0.0, 1.0), 1), (column, (1.0, 0.0), 1)):
-        assert rows_stacked(state.position, model.offsets, model.rest_perimeter, *up) == rows
+    for built, up, rows in ((column, (0.0, 1.0), 16), (row, (0.0, 1.0), 1), (column, (1.0, 0.0), 1)):
+        assert stage(*built, up).call("rows_stacked") == rows
     edge = float(np.min(column[0].rest_perimeter / np.diff(column[0].offsets)))
-    taken = [substeps_for(state.position, state.velocity, model.offsets, state.awake, model.rest_perimeter, dt, g,
-                          0.0, 1.0, 4, 16) for model, state in (column, row)]
+    taken = [stage(*built, (0.0, 1.0), dt, 4, 16).call("substeps_for", g) for built in (column, row)]
     assert taken == [max(4, math.ceil(dt * math.sqrt(rows * g / (SAG * edge)))) for rows in (16, 1)] == [5, 4]
 
 

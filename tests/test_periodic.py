@@ -93,7 +93,7 @@ def test_the_file_has_the_box_the_image_and_each_blob_whole_inside(tmp_path):
         box = f["particles/blobs/box"]
         assert list(box.attrs["boundary"]) == [b"periodic", b"periodic"] and box.attrs["dimension"] == 2
         edges = box["edges"][...]
-        assert edges.tolist() == [3.0, 2.5] and f.attrs["blobsim_format"] == 8
+        assert edges.tolist() == [3.0, 2.5] and f.attrs["blobsim_format"] == 9
         pos, image = f["particles/blobs/position/value"][...], f["particles/blobs/image/value"][...]
         offsets = f["parameters/blob_offsets"][...]
     centres = np.stack([pos[:, o:e].mean(axis=1) for o, e in zip(offsets[:-1], offsets[1:])], axis=1)

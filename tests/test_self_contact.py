@@ -1,11 +1,10 @@
-"""Self-contact: a ring's parts do not pass through each other (sim/self_contact.py)."""
+"""Self-contact: a ring's parts do not pass through each other (core/self_contact.c)."""
 
 import numpy as np
 import pytest
-from conftest import FLOOR, MOMENTUM_ROUNDOFF, scene, self_intersects
+from conftest import FLOOR, MOMENTUM_ROUNDOFF, Stage, scene, self_intersects
 
 from blobcli import blob_measures, build, build_params, load_scene, step
-from blobcli.sim.self_contact import CHUNK_ROWS, keep_rings_simple
 from blobcli.tools.stress import STRESS_DIR
 
 FOLD_AREA = 0.02  # relative: the folded strip's area, the fold held open by self-contact and the post pushing into it
@@ -28,22 +27,33 @@ def test_a_strip_folded_over_a_post_never_crosses_itself():
 
 
 def test_the_fail_safe_moves_a_crossed_part_rigidly_and_keeps_the_momentum():
-    """keep_rings_simple, shown a ring whose vertex went through the far side within a substep: the crossed
-    part moves rigidly from where it was, the ring ends simple, Σ m Δx is kept, and a simple ring is not
-    touched (same bits)."""
+    """bc_keep_rings_simple (core/self_contact.c), shown a ring whose vertex went through the far side within a
+    substep: the crossed part moves rigidly from where it was, the ring ends simple, Σ m Δx is kept, and a simple
+    ring is not touched (same bits)."""
     n = 16
     t = 2.0 * np.pi * np.arange(n) / n
     prev = np.ascontiguousarray(np.stack([np.cos(t), np.sin(t)]))
     pos = prev + np.array([[0.3], [0.1]])  # the whole ring moved ...
     pos[0, 0] -= 2.5  # ... and one vertex through the ring's far side
     assert self_intersects(pos.T)
-    offsets, awake, held, still = np.array([0, n]), np.ones(1, np.uint8), np.zeros(n), np.zeros((2, n))
-    inv_mass, perimeter, target = np.ones(n), np.full(1, 2.0 * np.pi), np.zeros(1)
-    zoned, near, chunks = np.zeros(1, np.int64), np.ones(1, np.uint8), np.zeros((CHUNK_ROWS, n))
+    # one ring of n unit masses, at rest (v = 0, h = 1: x_prev + h v = x_prev), no collider holding it (held 0, no
+    # wall velocity), its chunks near (self_near 1: checked whatever it moved), no exact area afterwards
+    model, state = build(scene(f"[[blob]]\ncenter = [0.0, 0.0]\nradius = 1.0\nvertices = {n}\n"))
+    arrays = model.arrays._replace(inv_mass=np.ones(n), rest_perimeter=np.full(1, 2.0 * np.pi),
+                                   target_area=np.zeros(1))
+    state.previous[...] = prev
+    state.velocity[...] = 0.0
+    state.contact_depth[...] = 0.0
+    state.contact_material[...] = 0.0
+    state.awake[...] = 1
+    _, _, _, near, chunks, zoned = state.self_contact
+    near[...], chunks[...], zoned[...] = 1, 0.0, 0
+    stage = Stage(model, state, arrays=arrays, scratch=True)
 
     def fail_safe(x):
-        keep_rings_simple(x, prev, still, 1.0, held, np.zeros((6, n)), inv_mass, offsets, awake, perimeter, target,
-                          False, zoned, near, chunks)
+        state.position[...] = x
+        stage.call("keep_rings_simple", 1.0, 0)
+        x[...] = state.position
 
     moved = pos.sum(axis=1)
     fail_safe(pos)

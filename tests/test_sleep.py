@@ -1,9 +1,18 @@
-"""Sleeping islands (blobcli/sim/sleep.py): piles at rest sleep, frozen exactly, and wake when a mover comes."""
+"""Sleeping islands (blobcli/core/sleep.c): piles at rest sleep, frozen exactly, and wake when a mover comes."""
 
 import h5py
 import numpy as np
 import pytest
-from conftest import BLOB_PENETRATION, PILE_ASLEEP, PILE_REST_CENTRE, PILE_REST_VERTEX, blobsim, deepest_overlap, scene
+from conftest import (
+    BLOB_PENETRATION,
+    PILE_ASLEEP,
+    PILE_REST_CENTRE,
+    PILE_REST_VERTEX,
+    Stage,
+    blobsim,
+    deepest_overlap,
+    scene,
+)
 
 from blobcli import build, build_params
 from blobcli.sim.pipeline import advance
@@ -144,31 +153,51 @@ angular_velocity = 0.1
     assert state.awake.all()
 
 
+def sleep_rule(n, r, xs, pairs, sleep_speed, time_to_sleep, dt):
+    """Blobs of n vertices and radius r centred at (x, 0) for x in xs, with bc_update_sleep (core/sleep.c) on them
+    over these pairs of the broad phase (the scratch's pairs and pair_count): the state, and a call of one step's
+    sleep bookkeeping on the state's positions and velocities (no contacts: contact depth 0, no contact edges;
+    the previous positions the current ones)."""
+    model, state = build(scene("".join(f"[[blob]]\ncenter = [{x}, 0.0]\nradius = {r}\nvertices = {n}\n"
+                                       for x in xs)))
+    stage = Stage(model, state, scratch=True)
+    c = stage.views.settings
+    c.sleep_speed, c.time_to_sleep, c.dt = sleep_speed, time_to_sleep, dt
+    for k, (a, b) in enumerate(pairs):
+        stage.scratch.pairs[2 * k], stage.scratch.pairs[2 * k + 1] = a, b
+    stage.scratch.pair_count = len(pairs)
+
+    def update_sleep():
+        state.previous[...] = state.position
+        state.contact_depth[...], state.contact_material[...], state.c_edge[...] = 0.0, 0.0, -1
+        return stage.call("update_sleep")
+
+    return state, update_sleep
+
+
 def test_a_blob_is_still_while_it_goes_nowhere_on_average():
-    """The rule of sim/sleep.py on its own (each blob its own island): a blob that rocks in place at 4×
-    sleep_speed (the bottom row of a large pile does) sleeps after time_to_sleep, one that creeps at 0.8×
+    """The rule of core/sleep.c (bc_update_sleep) on its own (each blob its own island): a blob that rocks in place
+    at 4× sleep_speed (the bottom row of a large pile does) sleeps after time_to_sleep, one that creeps at 0.8×
     sleep_speed sleeps too, and one that creeps at 1.2× never does. Tested on the speed at each step,
     the rocking blob never slept."""
-    from blobcli.sim.sleep import update_sleep
     n, r, dt, sleep_speed, time_to_sleep = 16, 0.2, 1.0 / 60.0, 0.005, 1.0
     theta = 2 * np.pi * np.arange(n) / n
     ring = r * np.stack([np.cos(theta), np.sin(theta)])
-    pos = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 1.0, 2.0)], axis=1)
-    offsets = np.array([0, n, 2 * n, 3 * n])
-    awake, still = np.ones(3, np.uint8), np.zeros(3)
-    still_center, still_angle = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), np.zeros(3)
+    state, update_sleep = sleep_rule(n, r, (0.0, 1.0, 2.0), [], sleep_speed, time_to_sleep, dt)
+    pos, vel, awake = state.position, state.velocity, state.awake
+    pos[...] = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 1.0, 2.0)], axis=1)
+    awake[...], state.still[...] = 1, 0.0
+    state.still_center[...], state.still_angle[...] = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], 0.0
     spin = 4 * sleep_speed / r  # rad/s: the rim at 4 × sleep_speed
     asleep_at = [None] * 3
     for k in range(int(3 * time_to_sleep / dt)):
-        vel = np.zeros((2, 3 * n))
+        vel[...] = 0.0
         w = spin if k % 2 == 0 else -spin  # rocking: a step one way, a step back
         vel[0, :n], vel[1, :n] = -w * ring[1], w * ring[0]
         vel[0, n:2 * n] = 0.8 * sleep_speed
         vel[0, 2 * n:] = 1.2 * sleep_speed
         pos += vel * dt * awake.repeat(n)
-        update_sleep(pos, pos.copy(), vel, offsets, np.zeros((0, 2), np.int64), np.zeros(3 * n), np.zeros((4, 3 * n)),
-                     np.full((2, 3 * n), -1, np.int64), awake, still, still_center, still_angle, sleep_speed,
-                     time_to_sleep, dt)
+        update_sleep()
         for b in range(3):
             if asleep_at[b] is None and not awake[b]:
                 asleep_at[b] = (k + 1) * dt
@@ -182,21 +211,20 @@ def test_an_island_of_blobs_creeping_slower_than_sleep_speed_sleeps():
     measured from where their still times began, each would pass d = 5 mm every 1.25 s, out of step, and
     never both have time_to_sleep at once (the island never slept). Each window measured from where the
     last one ended, both are still: the island sleeps once the second has had time_to_sleep, at 1.625 s."""
-    from blobcli.sim.sleep import update_sleep
     n, r, dt, sleep_speed, time_to_sleep = 16, 0.2, 1.0 / 60.0, 0.005, 1.0
     theta = 2 * np.pi * np.arange(n) / n
     ring = r * np.stack([np.cos(theta), np.sin(theta)])
-    pos = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 0.41)], axis=1)
-    offsets, pair = np.array([0, n, 2 * n]), np.array([[0, 1]])
-    awake, still = np.ones(2, np.uint8), np.zeros(2)
-    still_center, still_angle = np.array([[0.0, 0.0], [0.41 - 0.0025, 0.0]]), np.zeros(2)
+    state, update_sleep = sleep_rule(n, r, (0.0, 0.41), [(0, 1)], sleep_speed, time_to_sleep, dt)
+    pos, awake = state.position, state.awake
+    pos[...] = np.concatenate([ring + [[x], [0.0]] for x in (0.0, 0.41)], axis=1)
+    awake[...], state.still[...] = 1, 0.0
+    state.still_center[...], state.still_angle[...] = [[0.0, 0.0], [0.41 - 0.0025, 0.0]], 0.0
     vel = np.zeros((2, 2 * n))
     vel[0] = 0.8 * sleep_speed
     for k in range(int(6 * time_to_sleep / dt)):
         pos += vel * dt * awake.repeat(n)
-        update_sleep(pos, pos.copy(), vel.copy(), offsets, pair, np.zeros(2 * n), np.zeros((4, 2 * n)),
-                     np.full((2, 2 * n), -1, np.int64), awake, still, still_center, still_angle, sleep_speed,
-                     time_to_sleep, dt)
+        state.velocity[...] = vel
+        update_sleep()
         if not awake.any():
             break
     assert not awake.any() and (k + 1) * dt == pytest.approx(1.625, abs=2 * dt)

@@ -341,7 +341,7 @@ def test_the_walls_are_recorded_and_a_resumed_run_is_bit_identical_mid_motion(tm
     report = compare_files(whole, resumed)
     assert report.same, report.text()
     with h5py.File(whole) as f:
-        assert f.attrs["blobsim_format"] == 8
+        assert f.attrs["blobsim_format"] == 9
         position = f["observables/statics/position/value"][...]
         assert position.shape == (151, 2, 2) and f["observables/statics/force/value"].shape == (151, 2, 2)
         assert np.allclose(position[:, 1, 1][[0, 60, 120]], [1.3, 1.3, 0.7])  # the press's path, recorded

@@ -106,11 +106,10 @@ void bc_area_kot(const bcContext *ctx) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t blob = 0; blob < m->blob_count; blob++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t blob = 0; blob < m->blob_count; blob++), {
         if (!s->awake[blob]) continue;
         bc_project_area(s->position, N, m->inv_mass, m->offsets[blob], m->offsets[blob + 1], m->target_area[blob]);
-    }
+    });
 }
 
 /* (A, Σ w_i |∇_i A|²) of ring o..e */
@@ -135,8 +134,7 @@ void bc_area_xpbd(const bcContext *ctx, double h) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         double area, norm;
@@ -146,7 +144,7 @@ void bc_area_xpbd(const bcContext *ctx, double h) {
         double dlam = (-(area - m->target_area[b]) - alpha * s->area_lam[b]) / (norm + alpha);
         s->area_lam[b] += dlam;
         gradient_step(s->position, N, m->inv_mass, o, e, dlam);
-    }
+    });
 }
 
 /* Ideal-gas pressure force; the area settles where the skin's tension balances it. */
@@ -158,8 +156,7 @@ void bc_area_gas(const bcContext *ctx, double scale) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         double area, norm;
@@ -168,7 +165,7 @@ void bc_area_gas(const bcContext *ctx, double scale) {
         if (area * m->target_area[b] <= 0.0) continue; /* turned inside out: no meaningful pressure */
         double pressure = m->gas_pressure[b] * m->target_area[b] / area;
         gradient_step(s->position, N, m->inv_mass, o, e, scale * pressure);
-    }
+    });
 }
 
 /* No pressure: internal springs hold the shape (and can let it invert). */

@@ -158,9 +158,10 @@ typedef struct bcContext {
 bcScratch *bc_scratch_new(const bcModel *m);
 void bc_scratch_free(bcScratch *w);
 
-/* The build: a hash of the C sources it was compiled from (blobcli/core/build.py), whether it has
- * OpenMP, and the threads its parallel stages run on (1 without OpenMP). */
+/* The build: a hash of the C sources it was compiled from (blobcli/core/build.py), the compiler that built
+ * it, whether it has OpenMP, and the threads its parallel stages run on (1 without OpenMP). */
 const char *bc_source_hash(void);
+const char *bc_compiler(void);
 int bc_has_openmp(void);
 void bc_set_threads(int threads);
 int bc_threads(void);

@@ -87,8 +87,7 @@ static void blob_bounds(const bcContext *ctx) {
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
     const double *pos = s->position;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         double cx = 0.0, cy = 0.0;
         for (int64_t i = o; i < e; i++) {
@@ -111,7 +110,7 @@ static void blob_bounds(const bcContext *ctx) {
         s->center[2 * b] = cx;
         s->center[2 * b + 1] = cy;
         s->radius[b] = bc_ring_radius(pos, N, o, e, cx, cy);
-    }
+    });
 }
 
 /* Counting sort of 0..n-1 by key (stable: within a bucket, by index): bucket k holds order[start[k] ..
@@ -331,25 +330,23 @@ static int64_t list_pairs(const bcContext *ctx, const Grid *g, bool periodic, bc
     bcScratch *w = ctx->w;
     int64_t *first = w->first;
     first[0] = 0;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < B; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
         first[a + 1] = near(a, center, radius, g, w->found, a * BC_FOUND_PER_BLOB, BC_FOUND_PER_BLOB, periodic, box);
-    }
+    });
     for (int64_t a = 0; a < B; a++) first[a + 1] += first[a];
     int64_t count = first[B];
     if (count > w->pair_capacity) {
         w->pair_count = 0;
         return count;
     }
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < B; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
         int64_t listed = first[a + 1] - first[a], row = a * BC_FOUND_PER_BLOB;
         for (int64_t k = 0; k < bc_imin(listed, BC_FOUND_PER_BLOB); k++) {
             w->pairs[2 * (first[a] + k)] = w->found[2 * (row + k)];
             w->pairs[2 * (first[a] + k) + 1] = w->found[2 * (row + k) + 1];
         }
         if (listed > BC_FOUND_PER_BLOB) near(a, center, radius, g, w->pairs, first[a], listed, periodic, box);
-    }
+    });
     w->pair_count = count;
     return count;
 }
@@ -514,8 +511,7 @@ void bc_keep_touching(const bcContext *ctx) {
     const int64_t N = m->vertex_count, P = w->pair_count;
     uint8_t *pushed = w->pushed, *touching = w->touching;
     for (int64_t j = 0; j < 2 * P; j++) pushed[j] = 0;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < m->blob_count; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < m->blob_count; a++), {
         for (int64_t p = m->offsets[a]; p < m->offsets[a + 1]; p++) {
             for (int64_t c = 0; c < BC_CONTACTS_PER_VERTEX; c++) {
                 int64_t edge = s->c_edge[c * N + p];
@@ -529,7 +525,7 @@ void bc_keep_touching(const bcContext *ctx) {
                 }
             }
         }
-    }
+    });
     for (int64_t k = 0; k < P; k++) touching[k] = 0;
     for (int64_t j = 0; j < 2 * P; j++) touching[w->partner_pair[j]] |= pushed[j];
     int64_t n = 0;

@@ -147,8 +147,8 @@ static inline void apply(double *pos, int64_t n, int64_t p, int64_t e0, int64_t 
  * first leaves the corner's wedge: s = min over the lines L of d_L / (n · n_L); the edge of that line takes
  * the reaction, at the exit point. Updates (e0, e1, t, n_x, n_y, C) to the contact's, C = -s; leaves them
  * where the corner is reflex or straight, p is in front of F's line, or u >= 1. */
-static void near_convex_corner(const double *pos, int64_t n, double orient, int64_t o, int64_t e, int64_t *e0,
-                               int64_t *e1, double *t, double *nx, double *ny, double *C, double px, double py) {
+void bc_near_convex_corner(const double *pos, int64_t n, double orient, int64_t o, int64_t e, int64_t *e0,
+                           int64_t *e1, double *t, double *nx, double *ny, double *C, double px, double py) {
     double ex = pos[*e1] - pos[*e0], ey = pos[n + *e1] - pos[n + *e0];
     int64_t k, kf;
     double fx, fy, turn;
@@ -297,7 +297,7 @@ static bool contact_push(const Contacts *cs, int64_t p, int64_t s, double *push)
     } else if (C >= 0.0) {
         return false;
     } else {
-        near_convex_corner(pos, n, orient, o, e, &e0, &e1, &t, &nx, &ny, &C, px, py);
+        bc_near_convex_corner(pos, n, orient, o, e, &e0, &e1, &t, &nx, &ny, &C, px, py);
         cs->c_edge[s * n + p] = e0;
     }
     cs->c_hit[s * n + p] = 1;
@@ -468,8 +468,7 @@ void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h) {
      * rows[1, ...] the strip of the blob it touches (a contact follows the other blob's ring, never to another
      * blob: both hold for the whole stage). */
     int64_t *rows = w->resolve_rows, *row_count = w->resolve_row_count;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < blob_count; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < blob_count; a++), {
         int64_t o = cs.offsets[a], e = cs.offsets[a + 1];
         int64_t i = CPV * o;
         for (int64_t p = o; p < e; p++) {
@@ -483,17 +482,17 @@ void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h) {
             }
         }
         row_count[a] = i - CPV * o;
-    }
+    });
     /* phase 0 is (1), phases 1-4 are (2) then (3), each even s then odd s: s|s+1 (shift 1), then s|s (shift 0) */
     for (int64_t phase = 0; phase < 5; phase++) {
         int64_t shift = 1 - floor_div(phase - 1, 2), parity = floor_mod(phase - 1, 2);
         int64_t tasks = phase == 0 ? (w->far ? 1 : 0) : (strips - parity + 1 - shift) / 2;
-        BC_PARALLEL_FOR(ctx->c->parallel)
-        for (int64_t q = 0; q < tasks; q++) { /* (phase 0 has one task: that order is sequential) */
+        /* (phase 0 has one task: that order is sequential) */
+        BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t q = 0; q < tasks; q++), {
             int64_t s = parity + 2 * q;
             resolve_between(&cs, w, phase == 0, s, s + shift, reverse != 0, w->resolve_push + q * slots * PUSH_ROW,
                             w->resolve_listed + q * slots);
-        }
+        });
     }
 }
 
@@ -578,19 +577,17 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
      * filled from each blob's own offset (in parallel, in the same order for any thread count). */
     int64_t *first = w->velocity_first;
     first[0] = 0;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < B; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
         int64_t count = 0;
         if (cs.awake[a])
             for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++)
                 for (int64_t c = 0; c < CPV; c++) count += pushed_contact(&cs, c, p);
         first[a + 1] = count;
-    }
+    });
     for (int64_t a = 0; a < B; a++) first[a + 1] += first[a];
     const int64_t K = first[B];
     int64_t *which = w->velocity_which; /* (4, K) */
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < B; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
         if (!cs.awake[a]) continue;
         int64_t i = first[a];
         for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++) {
@@ -605,14 +602,14 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
                 }
             }
         }
-    }
+    });
     /* Positions do not change in this stage, so each contact's geometry is found once: t, n, the scale
      * 1 / (W k), the edge's inverse mass, and the static and kinetic limits μ_s D / h, μ_k D / h (rows of
      * `geometry`; row 3 holds 1 / W until k is known). */
     double *geometry = w->velocity_geometry; /* (7, K) */
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t i = 0; i < K; i++)
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), {
         contact_geometry(&cs, which[i], which[K + i], which[2 * K + i], which[3 * K + i], geometry + i, K);
+    });
     /* k: how many of the contacts each vertex is in, an edge's end by its weight in the contact (so that a
      * mirror image of the contacts counts the same), at least 1 */
     double *share = w->velocity_share;
@@ -622,17 +619,17 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
         share[which[K + i]] += 1.0 - geometry[i];
         share[which[2 * K + i]] += geometry[i];
     }
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t i = 0; i < K; i++)
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), {
         geometry[3 * K + i] /= bc_max(bc_max(bc_max(share[which[i]], share[which[K + i]]), share[which[2 * K + i]]),
                                       1.0);
+    });
     double *impulse = w->velocity_impulse; /* (2, K) */
     for (int pass = 0; pass < VELOCITY_PASSES; pass++) {
-        BC_PARALLEL_FOR(ctx->c->parallel)
-        for (int64_t i = 0; i < K; i++) /* every impulse from the same velocities */
+        BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), { /* every impulse from the same velocities */
             contact_impulse(vel, n, which[i], which[K + i], which[2 * K + i], geometry[i], geometry[K + i],
                             geometry[2 * K + i], geometry[3 * K + i], geometry[5 * K + i], geometry[6 * K + i],
                             &impulse[i], &impulse[K + i]);
+        });
         for (int64_t i = 0; i < K; i++) { /* then added, in contact order */
             int64_t p = which[i], e0 = which[K + i], e1 = which[2 * K + i];
             double t = geometry[i], we = geometry[4 * K + i], jx = impulse[i], jy = impulse[K + i];

@@ -14,4 +14,9 @@ void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h);
  * friction on the tangential relative velocity; the impulses go into the virial in a periodic box. */
 void bc_blob_contact_velocities(const bcContext *ctx, double h);
 
+/* The push of vertex (px, py) kept on edge e0 → e1 of ring o..e (winding orient) near a convex corner, where it
+ * is behind both edges' lines: e0, e1, t, the normal (nx, ny) and C turned toward the corner's bisector. */
+void bc_near_convex_corner(const double *pos, int64_t n, double orient, int64_t o, int64_t e, int64_t *e0,
+                           int64_t *e1, double *t, double *nx, double *ny, double *C, double px, double py);
+
 #endif

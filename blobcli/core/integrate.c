@@ -58,8 +58,7 @@ void bc_damp_deformation(const bcContext *ctx, double factor) {
     const uint8_t *awake = ctx->s->awake;
     const double *pos = ctx->s->position;
     double *vel = ctx->s->velocity;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         double means[4];
@@ -71,7 +70,7 @@ void bc_damp_deformation(const bcContext *ctx, double factor) {
             vel[i] = rigid_x + (vel[i] - rigid_x) * factor;
             vel[n + i] = rigid_y + (vel[n + i] - rigid_y) * factor;
         }
-    }
+    });
 }
 
 /* A viscous drag on all motion (`[scene] drag` γ): v <- v f, f = exp(-γ h), the exact decay of dv/dt = -γ v over
@@ -83,14 +82,13 @@ void bc_drag_motion(const bcContext *ctx, double factor) {
     const int64_t n = m->vertex_count, *offsets = m->offsets;
     const uint8_t *awake = ctx->s->awake;
     double *vel = ctx->s->velocity;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!awake[b]) continue;
         for (int64_t i = offsets[b]; i < offsets[b + 1]; i++) {
             vel[i] *= factor;
             vel[n + i] *= factor;
         }
-    }
+    });
 }
 
 /* numba's order of floats in its sorts and searches (numba/np/numpy_support.py lt_floats): a < b, NaNs last */
@@ -152,7 +150,7 @@ static double array_max(const double *a, int64_t count) {
  * 0.2 (R_a + R_b), R the rest radius. Blobs side by side, or one alone, give 1. Blobs go up in height order, each
  * one more than the deepest blob it rests on; its candidates are those within 1.1 (R_a + R_b) across (along the
  * level), found by bisection in the blobs sorted that way. Serial, once a step. */
-static int64_t rows_stacked(const bcContext *ctx) {
+int64_t bc_rows_stacked(const bcContext *ctx) {
     const bcModel *m = ctx->m;
     bcScratch *w = ctx->w;
     const int64_t count = m->blob_count, n = m->vertex_count, *offsets = m->offsets;
@@ -218,7 +216,7 @@ int64_t bc_substeps_for(const bcContext *ctx, double g) {
     /* the sag of the blob at the bottom of the deepest stack: it carries the n - 1 above it, n g h² (the 1,000-blob
      * pile, ~25 rows, takes 6 substeps by this and comes to rest, fastest centre / vertex 0.46 / 15 mm/s in seconds
      * 21-25, against 1.77 / 58.5 at 4) */
-    int64_t rows = g > 0.0 ? rows_stacked(ctx) : 1;
+    int64_t rows = g > 0.0 ? bc_rows_stacked(ctx) : 1;
     double need = bc_max((fastest + g * dt) * dt / (STRIDE * edge), dt * sqrt((double)rows * g / (SAG * edge)));
     /* (also a non-finite speed: the runaway check ends the run after this step) */
     if (!(need < (double)c->most_substeps)) return c->most_substeps;
@@ -242,8 +240,7 @@ void bc_predict(const bcContext *ctx, double h) {
     const double gx = ctx->c->gx, gy = ctx->c->gy;
     double *pos = s->position, *prev = s->previous, *vel = s->velocity, *lam = s->lam, *depth = s->contact_depth;
     double *predicted = s->predicted;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         for (int64_t i = o; i < e; i++) {
@@ -271,7 +268,7 @@ void bc_predict(const bcContext *ctx, double h) {
             pos[i] = cx + h * vx + cos_wh * rx - sin_wh * ry + h * dx;
             pos[n + i] = cy + h * vy + sin_wh * rx + cos_wh * ry + h * dy;
         }
-    }
+    });
 }
 
 /* Blob b's deepest static push D this substep, if deeper than IMPACT_DEPTH × its radius (else 0), and the
@@ -314,8 +311,7 @@ void bc_stop_impacts(const bcContext *ctx) {
     const int64_t n = m->vertex_count, *offsets = m->offsets;
     const double *depth = ctx->s->contact_depth;
     double *pos = ctx->s->position;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!ctx->s->awake[b]) continue;
         double nx, ny;
         double deepest = impact_of(ctx, b, &nx, &ny);
@@ -326,7 +322,7 @@ void bc_stop_impacts(const bcContext *ctx) {
                 pos[n + i] += deepest * ny;
             }
         }
-    }
+    });
 }
 
 /* After a fast impact (bc_stop_impacts), no vertex of the blob approaches the surface along n. */
@@ -334,8 +330,7 @@ void bc_stop_impact_velocities(const bcContext *ctx) {
     const bcModel *m = ctx->m;
     const int64_t n = m->vertex_count, *offsets = m->offsets;
     double *vel = ctx->s->velocity;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!ctx->s->awake[b]) continue;
         double nx, ny;
         double deepest = impact_of(ctx, b, &nx, &ny);
@@ -347,7 +342,7 @@ void bc_stop_impact_velocities(const bcContext *ctx) {
                 vel[n + i] -= vn * ny;
             }
         }
-    }
+    });
 }
 
 /* v from the substep's motion, rotation read as an angle; then kinetic Coulomb friction at static contacts.
@@ -368,8 +363,7 @@ void bc_update_velocities(const bcContext *ctx, double h) {
     const bool moving = ctx->c->moving != 0;
     double *vel = s->velocity;
     double inv_h = 1.0 / h;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         double means[4];
@@ -388,9 +382,8 @@ void bc_update_velocities(const bcContext *ctx, double h) {
             vel[i] = (cx - px) * inv_h - w * ry + (rx - (cos_t * qx - sin_t * qy)) * inv_h;
             vel[n + i] = (cy - py) * inv_h + w * rx + (ry - (sin_t * qx + cos_t * qy)) * inv_h;
         }
-    }
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t i = 0; i < n; i++) {
+    });
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < n; i++), {
         double D = depth[i];
         if (D == 0.0) continue;
         /* At a static contact (static friction already held the vertex in the collider stage), relative to the
@@ -429,5 +422,5 @@ void bc_update_velocities(const bcContext *ctx, double h) {
             vel[i] += material[4 * n + i];
             vel[n + i] += material[5 * n + i];
         }
-    }
+    });
 }

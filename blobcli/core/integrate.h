@@ -8,6 +8,8 @@
 void bc_damp_deformation(const bcContext *ctx, double factor);
 void bc_drag_motion(const bcContext *ctx, double factor);
 int64_t bc_substeps_for(const bcContext *ctx, double g);
+/* How many blobs the most heavily loaded blob carries, itself included, from positions alone (along up) */
+int64_t bc_rows_stacked(const bcContext *ctx);
 void bc_predict(const bcContext *ctx, double h);
 void bc_stop_impacts(const bcContext *ctx);
 void bc_stop_impact_velocities(const bcContext *ctx);

@@ -44,8 +44,7 @@ static void blob_bounds(const bcContext *ctx, bool everyone) {
     const uint8_t *awake = s->awake;
     const double *pos = s->position;
     double *center = s->center, *radius = s->radius, *edges = s->edges;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!(everyone || awake[b])) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         double cx = 0.0, cy = 0.0;
@@ -67,7 +66,7 @@ static void blob_bounds(const bcContext *ctx, bool everyone) {
         center[2 * b] = cx;
         center[2 * b + 1] = cy;
         radius[b] = bc_ring_radius(pos, n, o, e, cx, cy);
-    }
+    });
 }
 
 /* For each awake blob b: its centre and radius now, and moved[b], how far its vertices are, at most, from where
@@ -79,8 +78,7 @@ static void moved_since_found(const bcContext *ctx) {
     const uint8_t *awake = s->awake;
     const double *pos = s->position, *anchor = s->anchor;
     double *center = s->center, *radius = s->radius, *moved = s->moved;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         double d2 = 0.0, cx = 0.0, cy = 0.0;
@@ -94,7 +92,7 @@ static void moved_since_found(const bcContext *ctx) {
         center[2 * b] = cx / (double)(e - o);
         center[2 * b + 1] = cy / (double)(e - o);
         radius[b] = bc_ring_radius(pos, n, o, e, center[2 * b], center[2 * b + 1]);
-    }
+    });
 }
 
 /* deep[k]: either centre of pair k lies inside the other blob, both awake (one awake blob deep in a sleeping one
@@ -105,8 +103,7 @@ static void deep_pairs(const bcContext *ctx, uint8_t *deep, bcBox box) {
     const int64_t n = m->vertex_count, *offsets = m->offsets, *pairs = ctx->w->pairs;
     const uint8_t *awake = s->awake;
     const double *pos = s->position, *center = s->center, *radius = s->radius;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t k = 0; k < ctx->w->pair_count; k++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t k = 0; k < ctx->w->pair_count; k++), {
         int64_t a = pairs[2 * k], b = pairs[2 * k + 1];
         if (!(awake[a] && awake[b])) {
             deep[k] = 0;
@@ -122,7 +119,7 @@ static void deep_pairs(const bcContext *ctx, uint8_t *deep, bcBox box) {
                   || (d2 <= radius[a] * radius[a]
                       && bc_ring_contains(pos, n, offsets[a], offsets[a + 1], center[2 * b] - sx,
                                           center[2 * b + 1] - sy));
-    }
+    });
 }
 
 /* Deep-overlap fallback for pair (a, b): split them along a line between the centres (a's nearest image of b's,
@@ -187,8 +184,7 @@ static void renew(const bcContext *ctx, const uint8_t *outgrown, double reach_ti
     const uint8_t *awake = s->awake;
     const double *pos = s->position, *vel = s->velocity, *radius = s->radius;
     double *anchor = s->anchor, *budget = s->budget, *moved = s->moved;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!(awake[b] && outgrown[b])) continue;
         double v2 = 0.0;
         for (int64_t i = offsets[b]; i < offsets[b + 1]; i++) {
@@ -199,7 +195,7 @@ static void renew(const bcContext *ctx, const uint8_t *outgrown, double reach_ti
         moved[b] = 0.0;
         budget[b] = bc_min(CONTACT_SLOP * radius[b] + sqrt(v2) * reach_time + g * (reach_time * reach_time),
                            0.5 * BROAD_MARGIN * radius[b]);
-    }
+    });
 }
 
 /* The edge of blob B nearest p = (x, y) (edge table rows ax, ay, ex, ey, inv_len2 from B's first vertex on, n of
@@ -270,8 +266,7 @@ static void detect(const bcContext *ctx, const uint8_t *stale, const uint8_t *de
     const double *edges = s->edges;
     int64_t *c_edge = s->c_edge, *stick_edge = s->stick_edge, *old_edge = w->detect_old_edge;
     double *stick_t = s->stick_t, *key = w->detect_key, *old_t = w->detect_old_t;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t A = 0; A < m->blob_count; A++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t A = 0; A < m->blob_count; A++), {
         if (!stale[A]) continue;
         int64_t oa = offsets[A], ea = offsets[A + 1];
         /* the stick points of the contacts found before, to carry over to the same blobs' contacts */
@@ -333,7 +328,7 @@ static void detect(const bcContext *ctx, const uint8_t *stale, const uint8_t *de
                 }
             }
         }
-    }
+    });
 }
 
 /* Narrow phase, every iteration: split deeply overlapping pairs; then find the contacts (c_edge) of every awake

@@ -120,8 +120,7 @@ void bc_solve_perimeter(const bcContext *ctx, double h) {
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
     double *unit_rows = ctx->w->perimeter_unit; /* (2, N): its unit edge vectors t_i, each blob in its own columns */
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         int64_t n = e - o;
@@ -150,5 +149,5 @@ void bc_solve_perimeter(const bcContext *ctx, double h) {
         }
         solve_total_length(x, y, n, w, m->rest_perimeter[b], m->compliance[b] * (double)n / (h * h),
                            s->perimeter_lam, b, unit_rows + o, unit_rows + N + o);
-    }
+    });
 }

@@ -79,8 +79,7 @@ void bc_restitution(const bcContext *ctx, double rest_speed) {
     const double gx = ctx->c->gx, gy = ctx->c->gy;
     const bool moving = ctx->c->moving != 0;
     double *vel = s->velocity;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
         double nx = 0.0, ny = 0.0, ux = 0.0, uy = 0.0, kinetic = 0.0, cx = 0.0, cy = 0.0;
@@ -130,7 +129,7 @@ void bc_restitution(const bcContext *ctx, double rest_speed) {
                 vel[n + i] += du * ny;
             }
         }
-    }
+    });
 }
 
 /* Whether a contact between the two blobs of each pair pushed this substep, both awake (a sleeping blob does not
@@ -144,8 +143,7 @@ static void find_touching(const bcContext *ctx, uint8_t *pushed, uint8_t *touchi
     const uint8_t *c_hit = ctx->s->c_hit, *awake = ctx->s->awake;
     const int64_t pair_count = bc_imin(w->pair_count, w->pair_capacity);
     memset(pushed, 0, (size_t)(2 * pair_count));
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t a = 0; a < m->blob_count; a++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < m->blob_count; a++), {
         for (int64_t p = offsets[a]; p < offsets[a + 1]; p++) {
             for (int64_t c = 0; c < BC_CONTACTS_PER_VERTEX; c++) {
                 /* a contact that pushed in an earlier iteration keeps its c_hit when the narrow phase finds its
@@ -162,7 +160,7 @@ static void find_touching(const bcContext *ctx, uint8_t *pushed, uint8_t *touchi
                 }
             }
         }
-    }
+    });
     memset(touching, 0, (size_t)pair_count);
     for (int64_t j = 0; j < 2 * pair_count; j++) touching[w->partner_pair[j]] |= pushed[j];
     for (int64_t k = 0; k < pair_count; k++) {
@@ -208,8 +206,7 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
     for (int64_t k = 0; k < pair_count; k++) {
         if (touching[k]) involved[pairs[2 * k]] = involved[pairs[2 * k + 1]] = 1;
     }
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < B; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < B; b++), {
         if (involved[b]) {
             double means[4], kinetic;
             bc_centre_motion(s->position, vel, n, offsets[b], offsets[b + 1], means, &kinetic);
@@ -219,7 +216,7 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
             motion[3 * b + 1] = means[3];
             motion[3 * b + 2] = kinetic;
         }
-    }
+    });
     for (int64_t k = 0; k < pair_count; k++) {
         if (!touching[k]) continue;
         int64_t a = pairs[2 * k], b = pairs[2 * k + 1];
@@ -266,13 +263,12 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
             shift[2 * c + 1] += dy;
         }
     }
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < B; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < B; b++), {
         if (shift[2 * b] != 0.0 || shift[2 * b + 1] != 0.0) {
             for (int64_t p = offsets[b]; p < offsets[b + 1]; p++) {
                 vel[p] += shift[2 * b];
                 vel[n + p] += shift[2 * b + 1];
             }
         }
-    }
+    });
 }

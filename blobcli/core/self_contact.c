@@ -309,8 +309,7 @@ void bc_find_self_contacts(const bcContext *ctx) {
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
     const double *prev = s->previous, *pos = s->position;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         s->self_count[b] = 0;
         s->self_near[b] = APART;
         if (!s->awake[b]) continue;
@@ -338,7 +337,7 @@ void bc_find_self_contacts(const bcContext *ctx) {
             }
         }
         set_skin(pos, N, o, e, s->self_chunks, s->self_near[b] == APART ? apart : 0.0);
-    }
+    });
 }
 
 /* How many pairs bc_find_self_contacts found in all (none: the resolve stage has nothing to do). */
@@ -471,8 +470,7 @@ void bc_resolve_self_contacts(const bcContext *ctx, int hold, int reverse) {
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count, V = PER_VERTEX * N;
     const Resolve r = {s->position, s->previous, m->inv_mass, s->contact_depth, s->contact_normal, N, hold != 0};
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         /* (count[b] is at most PER_VERTEX (e - o): bc_find_self_contacts's slots for the ring) */
         int64_t pairs_here = bc_imin(s->self_count[b], PER_VERTEX * (e - o));
@@ -485,7 +483,7 @@ void bc_resolve_self_contacts(const bcContext *ctx, int hold, int reverse) {
             resolve_pair(&r, m->orient[b], m->material[3 * b], m->material[3 * b + 1], p, j, bc_next_in_ring(j, o, e),
                          s->self_values, V, k);
         }
-    }
+    });
 }
 
 /* Whether segments (a, a1) and (b, b1) cross or touch: each one's ends not strictly on one side of the
@@ -625,8 +623,7 @@ void bc_keep_rings_simple(const bcContext *ctx, double h, int exact_area) {
     const int64_t N = m->vertex_count;
     double *pos = s->position;
     const double *prev = s->previous, *vel = s->velocity, *held = s->contact_depth;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         int64_t n = e - o;
@@ -672,5 +669,5 @@ void bc_keep_rings_simple(const bcContext *ctx, double h, int exact_area) {
                 pos[N + o + k] = kept[n + k];
             }
         }
-    }
+    });
 }

@@ -170,8 +170,7 @@ static inline bool inside_shape(const double *geom, int64_t start, int64_t stop,
 /* Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed. */
 static void collide_plane(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
-    BC_PARALLEL_FOR(parallel)
-    for (int64_t i = 0; i < n; i++) {
+    BC_PARALLEL_LOOP(parallel, (int64_t i = 0; i < n; i++), {
         if (!g->awake[g->blob_of[i]]) continue;
         const double *blob_material = g->blob_material + 3 * g->blob_of[i];
         double x = g->pos[i], y = g->pos[n + i];
@@ -196,7 +195,7 @@ static void collide_plane(const Stage *g, const Colliders *c, int parallel) {
         }
         g->pos[i] = x;
         g->pos[n + i] = y;
-    }
+    });
 }
 
 /* A zero-thickness wall, solid from both sides. The side a vertex belongs to is the side its substep began
@@ -204,8 +203,7 @@ static void collide_plane(const Stage *g, const Colliders *c, int parallel) {
  * put back at distance SKIN. */
 static void collide_segment(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
-    BC_PARALLEL_FOR(parallel)
-    for (int64_t i = 0; i < n; i++) {
+    BC_PARALLEL_LOOP(parallel, (int64_t i = 0; i < n; i++), {
         if (!g->awake[g->blob_of[i]]) continue;
         const double *blob_material = g->blob_material + 3 * g->blob_of[i];
         double x = g->pos[i], y = g->pos[n + i];
@@ -248,7 +246,7 @@ static void collide_segment(const Stage *g, const Colliders *c, int parallel) {
         }
         g->pos[i] = x;
         g->pos[n + i] = y;
-    }
+    });
 }
 
 /* A circle with blobs inside, solid outside (a drum): a vertex beyond the radius goes back to the nearest
@@ -289,8 +287,7 @@ static inline void held_inside_circle(const Stage *g, int64_t i, double x, doubl
 
 static void collide_circle(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
-    BC_PARALLEL_FOR(parallel)
-    for (int64_t i = 0; i < n; i++) {
+    BC_PARALLEL_LOOP(parallel, (int64_t i = 0; i < n; i++), {
         if (!g->awake[g->blob_of[i]]) continue;
         const double *blob_material = g->blob_material + 3 * g->blob_of[i];
         double x = g->pos[i], y = g->pos[n + i];
@@ -364,14 +361,13 @@ static void collide_circle(const Stage *g, const Colliders *c, int parallel) {
         }
         g->pos[i] = x;
         g->pos[n + i] = y;
-    }
+    });
 }
 
 /* Polygons are counter-clockwise, so edge (a, b) has outward normal (e_y, -e_x) / |e|. */
 static void collide_polygon(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
-    BC_PARALLEL_FOR(parallel)
-    for (int64_t i = 0; i < n; i++) {
+    BC_PARALLEL_LOOP(parallel, (int64_t i = 0; i < n; i++), {
         if (!g->awake[g->blob_of[i]]) continue;
         const double *blob_material = g->blob_material + 3 * g->blob_of[i];
         double x = g->pos[i], y = g->pos[n + i];
@@ -470,7 +466,7 @@ static void collide_polygon(const Stage *g, const Colliders *c, int parallel) {
         }
         g->pos[i] = x;
         g->pos[n + i] = y;
-    }
+    });
 }
 
 void bc_collide_statics(const bcContext *ctx, double h) {

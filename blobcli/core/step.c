@@ -6,6 +6,7 @@
  * colliders; the area method; sleeping; moving or loaded walls; a periodic box) take the place of builds
  * per configuration, and cost a predicted branch each.
  */
+#define _POSIX_C_SOURCE 199309L /* clock_gettime under -std=c11 */
 #include <math.h>
 #include <time.h>
 

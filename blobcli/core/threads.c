@@ -11,6 +11,14 @@
 
 const char *bc_source_hash(void) { return BC_SOURCE_HASH; }
 
+#ifdef __clang__
+const char *bc_compiler(void) { return "clang " __clang_version__; }
+#elif defined(__GNUC__)
+const char *bc_compiler(void) { return "gcc " __VERSION__; }
+#else
+const char *bc_compiler(void) { return "unknown"; }
+#endif
+
 #ifdef _OPENMP
 int bc_has_openmp(void) { return 1; }
 void bc_set_threads(int threads) { omp_set_num_threads(threads > 0 ? threads : 1); }

@@ -306,8 +306,7 @@ void bc_record_contact_impulses(const bcContext *ctx, double h) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     int64_t n = m->vertex_count;
-    BC_PARALLEL_FOR(ctx->c->parallel)
-    for (int64_t b = 0; b < m->blob_count; b++) {
+    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         double depth = 0.0;
@@ -328,7 +327,7 @@ void bc_record_contact_impulses(const bcContext *ctx, double h) {
                 s->static_push[(2 * slot + 1) * n + i] += part * jy;
             }
         }
-    }
+    });
 }
 
 /* The velocity-level impulses of the substep's static contacts (the velocity update's clamp and kinetic

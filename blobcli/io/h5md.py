@@ -26,15 +26,15 @@ from ..geometry import ring_next
 from ..sim import packing
 from .outputs import create_partial, publish
 
-FORMAT_VERSION = 8
+FORMAT_VERSION = 9
 # Format 1 lacks /connectivity, particles/blobs/mass and the units module; formats 1 and 2 store impact_speed
 # in /restart; formats 1-3 have no sleeping (no /observables/awake: every blob was awake); formats 1-5 are not
 # resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5));
 # formats 1-6 have no moving colliders (no /observables/statics, no /restart/static_pose: every collider at rest);
 # formats 1-7 have no periodic box (their box's boundary is "none").
-READS_FORMATS = (1, 2, 3, 4, 5, 6, 7, 8)
+READS_FORMATS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 8, stopped (str: why a run ended early),
+/                            attrs: complete (bool), blobsim_format = 9, stopped (str: why a run ended early),
                                     warnings (str: problems seen in the final state; may be absent)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
@@ -88,8 +88,8 @@ LAYOUT = """\
     scene                    str: the scene's TOML text
       attrs: dt, substeps, max_substeps, iterations, method, damping, gravity, sleep, sleep_speed, time_to_sleep, steps,
              every, source,
-             blobsim_version, python, numpy, numba, llvmlite, h5py, hdf5, platform, machine,
-             numba_threads, env_NUMBA_NUM_THREADS, env_OMP_NUM_THREADS, env_OPENBLAS_NUM_THREADS,
+             blobsim_version, python, numpy, core, compiler, h5py, hdf5, platform, machine,
+             threads, env_OMP_NUM_THREADS, env_OPENBLAS_NUM_THREADS,
              env_PYTHONHASHSEED
 /restart                     the exact state at the last recorded frame (for --resume)
     position, velocity       float64 [vertices, 2]
@@ -158,16 +158,14 @@ def _series(group, name, shape, dtype=np.float64, unit=None, chunk=1):
 
 def versions() -> dict:
     """Versions and settings a bit-for-bit reproduction needs."""
-    import llvmlite
-    import numba
-
     from .. import __version__
-    env = {k: os.environ.get(k, "") for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
-                                               "PYTHONHASHSEED")}
+    from ..core import load
+    ffi, lib = load()
+    env = {k: os.environ.get(k, "") for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "PYTHONHASHSEED")}
     return {"blobsim_version": __version__, "python": sys.version.split()[0], "numpy": np.__version__,
-            "numba": numba.__version__, "llvmlite": llvmlite.__version__, "h5py": h5py.__version__,
-            "hdf5": h5py.version.hdf5_version, "platform": platform.platform(), "machine": platform.machine(),
-            "numba_threads": numba.get_num_threads(), **{f"env_{k}": v for k, v in env.items()}}
+            "core": ffi.string(lib.bc_source_hash()).decode(), "compiler": ffi.string(lib.bc_compiler()).decode(),
+            "h5py": h5py.__version__, "hdf5": h5py.version.hdf5_version, "platform": platform.platform(),
+            "machine": platform.machine(), "threads": lib.bc_threads(), **{f"env_{k}": v for k, v in env.items()}}
 
 
 class TrajectoryError(Exception):

@@ -25,7 +25,7 @@ import numpy as np
 from ..scene.schema import Scene
 from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
 from ..sim.model import SimulationError, build, build_params
-from ..sim.pipeline import advance, compile_step, settings
+from ..sim.pipeline import advance, settings
 from ..sim.schedule import Schedules
 from . import interrupts
 from .h5md import DiskFull, TrajectoryError, TrajectoryWriter
@@ -73,7 +73,7 @@ class RunResult:
 
 
 def simulate(scene: Scene, path: str | Path | None = None, progress: bool = False,
-             resume: str | Path | None = None, replace_stale_partial: bool = False, announce=None,
+             resume: str | Path | None = None, replace_stale_partial: bool = False,
              threads: int | None = None) -> RunResult:
     """Run `scene` and write its trajectory to `path` (default: the scene's output path).
 
@@ -82,9 +82,8 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
     bit for bit the trajectory of a run that was never interrupted. Raises OutputError
     (before any work) when `path` cannot be written or another run holds it. A `<path>.partial`
     left by a killed run is refused, unless `replace_stale_partial` (a sweep retrying a point
-    whose worker died): holding the lock proves no live run owns it. `announce` (io.notice.announcer)
-    is entered around a compile of the step, when its build is not in numba's disk cache. `threads`:
-    a fixed thread count for the step, or None for auto (io/threads.py)."""
+    whose worker died): holding the lock proves no live run owns it. `threads`: a fixed thread count
+    for the step, or None for auto (io/threads.py)."""
     path = Path(path) if path is not None else scene.output_path
     problem = output_problem(path)
     if problem:
@@ -92,32 +91,17 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
     with interrupts.deferred(), OutputLock(path):  # a signal since the command began stops it before its first step
         if replace_stale_partial:
             path.with_name(path.name + ".partial").unlink(missing_ok=True)
-        return _run_locked(scene, path, progress, resume, announce, threads)
+        return _run_locked(scene, path, progress, resume, threads)
 
 
-def compile_scenes(scenes, announce=None) -> None:
-    """Compile the step, and the kernels that record a frame, for each distinct configuration among
-    `scenes`, or load them from numba's disk cache: a sweep does this once before it fans out, so that
-    its workers load the builds instead of each compiling them at once."""
-    seen = set()
-    for scene in scenes:
-        model, state = build(scene)
-        step_settings = settings(model, build_params(scene))
-        if (step_settings.config, model.parallel) not in seen:
-            seen.add((step_settings.config, model.parallel))
-            compile_step(state, model, step_settings, announce)
-            blob_measures(state, model)
-            first_runaway(state.position, RUNAWAY)
-
-
-def _run_locked(scene, path, progress, resume, announce, threads) -> RunResult:
+def _run_locked(scene, path, progress, resume, threads) -> RunResult:
     model, state = build(scene)
     params = build_params(scene)
     with ThreadChoice(threads, model.parallel) as choice:  # before the writer: it records the threads
-        return _run_chosen(scene, path, progress, resume, announce, model, state, params, choice)
+        return _run_chosen(scene, path, progress, resume, model, state, params, choice)
 
 
-def _run_chosen(scene, path, progress, resume, announce, model, state, params, choice) -> RunResult:
+def _run_chosen(scene, path, progress, resume, model, state, params, choice) -> RunResult:
     worst = 0.0
     writer = TrajectoryWriter(path, scene, model, params)
     schedules = Schedules(scene, model, params)  # they change the step's arrays between steps
@@ -160,7 +144,6 @@ def _run_chosen(scene, path, progress, resume, announce, model, state, params, c
             bar = tqdm(total=params.steps, initial=done, unit="step", file=sys.stderr, mininterval=PROGRESS_SECONDS,
                        leave=False)
         step_settings = settings(model, params)
-        compile_step(state, model, step_settings, announce)
         chunk = 1  # steps per compiled call: grown to about CALL_SECONDS of wall time
         while done < params.steps and interrupts.pending() is None:
             threads, count = choice.plan(min(chunk, params.steps - done, params.every - done % params.every))

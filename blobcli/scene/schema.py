@@ -36,7 +36,7 @@ STATIC_MOTION_KEYS = ("velocity", "angular_velocity", "pivot", "path", "load", "
 MAX_KEYFRAMES = 10_000  # rows of a path or a schedule
 SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution")
 
-METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/sim/area.py
+METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/core/area.c (in this order)
 
 
 class SceneError(Exception):

@@ -1,80 +1,51 @@
-"""Per-blob measurements taken at recorded frames, and the runaway check."""
+"""Per-blob measurements taken at recorded frames, and the runaway check (blobcli/core/measure.c)."""
 
 import numpy as np
 
-from ..jit import kernel
 from .model import Model, State
-from .ring import next_in_ring, turn, twice_ring_area
 
 RUNAWAY = 1e6  # m: a coordinate beyond this (or non-finite) stops the run
 
 
-@kernel
-def _blob_measures(pos, vel, inv_mass, offsets, area, kinetic):
-    for b in range(offsets.shape[0] - 1):
-        o, e = offsets[b], offsets[b + 1]
-        ke = 0.0
-        for i in range(o, e):
-            ke += (vel[0, i] ** 2 + vel[1, i] ** 2) / inv_mass[i]
-        area[b] = 0.5 * twice_ring_area(pos, o, e)
-        kinetic[b] = 0.5 * ke
+def _pointer(ffi, array: np.ndarray, kind: str):
+    return ffi.cast(kind, array.ctypes.data)
 
 
 def blob_measures(state: State, model: Model, inv_mass: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(signed area (B,) m², kinetic energy (B,) J) of every blob; `inv_mass`: a schedule's, not the model's."""
-    area = np.empty(model.blob_count)
-    kinetic = np.empty(model.blob_count)
-    _blob_measures(state.position, state.velocity, model.inv_mass if inv_mass is None else inv_mass, model.offsets,
-                   area, kinetic)
+    from ..core import load
+
+    ffi, lib = load()
+    inv_mass = np.ascontiguousarray(model.inv_mass if inv_mass is None else inv_mass, dtype=np.float64)
+    position, velocity = np.ascontiguousarray(state.position), np.ascontiguousarray(state.velocity)
+    area, kinetic = np.empty(model.blob_count), np.empty(model.blob_count)
+    lib.bc_blob_measures(_pointer(ffi, position, "double *"), _pointer(ffi, velocity, "double *"), position.shape[1],
+                         _pointer(ffi, inv_mass, "double *"), _pointer(ffi, model.offsets, "int64_t *"),
+                         model.blob_count, _pointer(ffi, area, "double *"), _pointer(ffi, kinetic, "double *"))
     return area, kinetic
 
 
-@kernel
-def first_runaway(pos, limit):
-    """Index of the first vertex of pos (2, N) that is non-finite or beyond `limit`, or -1."""
-    bad = False
-    for i in range(pos.shape[1]):  # a loop with no exit, so that it vectorizes: it runs every step
-        bad |= not (abs(pos[0, i]) <= limit) or not (abs(pos[1, i]) <= limit)  # also catches NaN
-    if bad:
-        for i in range(pos.shape[1]):
-            if not (abs(pos[0, i]) <= limit) or not (abs(pos[1, i]) <= limit):
-                return i
-    return -1
+def first_runaway(position: np.ndarray, limit: float = RUNAWAY) -> int:
+    """Index of the first vertex of position (2, N) that is non-finite or beyond `limit` (m), or -1."""
+    from ..core import load
 
-
-SELF_CROSSING_MAX_VERTICES = 4096  # larger rings are not checked for self-crossing (O(n²) per ring)
-
-
-@kernel
-def _shape_faults(pos, offsets, orient, faults):
-    """faults[b] = 1 if blob b's signed area has lost its rest sign (inside out), 2 if its ring
-    crosses itself (two non-adjacent edges properly cross), else 0."""
-    for b in range(offsets.shape[0] - 1):
-        o, e = offsets[b], offsets[b + 1]
-        faults[b] = 0
-        if twice_ring_area(pos, o, e) * orient[b] <= 0.0:
-            faults[b] = 1
-            continue
-        if e - o > SELF_CROSSING_MAX_VERTICES:
-            continue
-        for i in range(o, e):
-            i1 = next_in_ring(i, o, e)
-            for j in range(i + 2, e):
-                j1 = next_in_ring(j, o, e)
-                if j1 == i:
-                    continue
-                if (turn(pos, i, i1, j) * turn(pos, i, i1, j1) < 0
-                        and turn(pos, j, j1, i) * turn(pos, j, j1, i1) < 0):
-                    faults[b] = 2
-                    break
-            if faults[b]:
-                break
+    ffi, lib = load()
+    position = np.ascontiguousarray(position, dtype=np.float64)
+    return int(lib.bc_first_runaway_in(_pointer(ffi, position, "double *"), position.shape[1], limit))
 
 
 def shape_warning(state: State, model: Model) -> str:
-    """One sentence on blobs that are inside out or self-intersecting now, or ""."""
+    """One sentence on blobs that are inside out or self-intersecting now (rings of up to
+    BC_SELF_CROSSING_MAX_VERTICES vertices are checked for crossings), or ""."""
+    from ..core import load
+
+    ffi, lib = load()
+    position = np.ascontiguousarray(state.position)
+    orient = np.ascontiguousarray(model.orient, dtype=np.float64)
     faults = np.zeros(model.blob_count, dtype=np.int64)
-    _shape_faults(state.position, model.offsets, model.orient, faults)
+    lib.bc_shape_faults(_pointer(ffi, position, "double *"), position.shape[1],
+                        _pointer(ffi, model.offsets, "int64_t *"), model.blob_count,
+                        _pointer(ffi, orient, "double *"), _pointer(ffi, faults, "int64_t *"))
     parts = []
     for code, what in ((1, "inside out"), (2, "self-intersecting")):
         blobs = np.flatnonzero(faults == code)

@@ -15,14 +15,20 @@ from typing import NamedTuple
 import numpy as np
 
 from ..colliders import COLLIDERS, SOLVERS, default_pivot
+from ..core import Views, load
 from ..geometry import ring_next, signed_area
 from ..scene.placement import random_centres, ring_at_origin
 from ..scene.schema import BlobDef, Scene, StaticDef, expanded_names
-from .collide import CONTACTS_PER_VERTEX, PAIRS_PER_BLOB
-from .integrate import NO_BOUNCE
-from .self_contact import self_contact_records
-from .sleep import begin_still
-from .walls import FIXED, LOADED, PATH, VELOCITY, WALL_POSE_COLUMNS, place_initial
+
+# The compiled core's sizes and codes (its headers are their one home)
+_FFI, _CORE = load()
+PAIRS_PER_BLOB = _CORE.BC_PAIRS_PER_BLOB  # past this many close blob pairs per blob the step stops
+CONTACTS_PER_VERTEX = _CORE.BC_CONTACTS_PER_VERTEX  # a vertex keeps contacts with its two nearest blobs
+SELF_PER_VERTEX = _CORE.BC_SELF_PER_VERTEX  # self-contact pairs kept per vertex
+SELF_CHUNK_ROWS = _CORE.BC_SELF_CHUNK_ROWS  # rows of the self-contact chunk table
+FIXED, VELOCITY, PATH, LOADED = _CORE.BC_FIXED, _CORE.BC_VELOCITY, _CORE.BC_PATH, _CORE.BC_LOADED  # Walls.motion
+WALL_POSE_COLUMNS = _CORE.BC_WALL_POSE_COLUMNS  # State.static_pose: dx, dy, θ, s, V, s at the substep's start
+NO_BOUNCE = -math.inf  # an impact record's leave energy before the contact has bounced (restitution.c)
 
 PARALLEL_BLOBS = 32  # a parallel launch costs ~2 µs: smaller scenes run every stage on one thread
 
@@ -47,13 +53,13 @@ class Params:
     method: str
     steps: int
     every: int
-    sleep: bool = True  # islands at rest fall asleep (sim/sleep.py) ...
+    sleep: bool = True  # islands at rest fall asleep (core/sleep.c) ...
     sleep_speed: float = 0.005  # m/s ... below this rigid speed ...
     time_to_sleep: float = 1.0  # s ... for this long
     box: tuple = (0.0, 0.0)  # m: the periodic box's sides [Lx, Ly]; (0, 0): an open world
     drag: float = 0.0  # 1/s: viscous drag on all motion
     shear: float = 0.0  # the periodic box's Lees–Edwards shear strain γ (a schedule's)
-    max_substeps: int = 16  # ... and the most (integrate.substeps_for)
+    max_substeps: int = 16  # ... and the most (core/integrate.c: bc_substeps_for)
 
 
 @dataclass(frozen=True)
@@ -71,8 +77,8 @@ class StaticSet:
 
 
 class Walls(NamedTuple):
-    """How each collider moves (sim/walls.py), by its place among the scene's [[static]] tables."""
-    motion: np.ndarray  # (S,) int64: walls.FIXED, VELOCITY, PATH or LOADED
+    """How each collider moves (core/walls.c), by its place among the scene's [[static]] tables."""
+    motion: np.ndarray  # (S,) int64: FIXED, VELOCITY, PATH or LOADED
     pivot: np.ndarray  # (S, 2) m: the point it turns about and is recorded at
     drive: np.ndarray  # (S, 3): VELOCITY: vx, vy (m/s), ω (rad/s); LOADED: load F (N), its unit direction e
     mass: np.ndarray  # (S,) kg: a loaded wall's mass
@@ -140,7 +146,7 @@ class Model:
 
     @property
     def moving(self) -> bool:
-        """Whether a collider moves (walls.py)."""
+        """Whether a collider moves (core/walls.c)."""
         return bool(np.any(self.walls.motion != FIXED))
 
     @property
@@ -155,7 +161,7 @@ class Model:
 
     @property
     def parallel(self) -> bool:
-        """Whether the stages run their parallel builds (jit.stage_kernel): from PARALLEL_BLOBS."""
+        """Whether the stages split their loops over threads (core/parallel.h): from PARALLEL_BLOBS."""
         return self.blob_count >= PARALLEL_BLOBS
 
     @property
@@ -179,12 +185,12 @@ class State(NamedTuple):
     velocity: np.ndarray  # (2, N) m/s
     impact: np.ndarray  # (B, 4) each blob's latest impact on statics: fastest approach V (m/s), the energy it
     #                     bounced with (J/kg; -inf before), the kinetic and potential energy it came with (J/kg):
-    #                     integrate.bounce
+    #                     restitution.c: bounce
     pair_key: np.ndarray  # (PAIRS_PER_BLOB B,) int64: the blob pairs (a, b), a < b, as a B + b, sorted, that have had
     #                     an impact, in pair_key[:pair_count[0]] ...
     pair_impact: np.ndarray  # (PAIRS_PER_BLOB B, 4) ... and their impact records, like `impact`
     pair_count: np.ndarray  # (1,) int64
-    awake: np.ndarray  # (B,) uint8: 1 awake, 0 asleep (sim/sleep.py) ...
+    awake: np.ndarray  # (B,) uint8: 1 awake, 0 asleep (core/sleep.c) ...
     still: np.ndarray  # (B,) s ... how long each awake blob has been still ...
     still_center: np.ndarray  # (B, 2) m ... where its centre was when that time began ...
     still_angle: np.ndarray  # (B,) rad ... and the angle of its first vertex about that centre then
@@ -195,8 +201,8 @@ class State(NamedTuple):
     contact_normal: np.ndarray  # (2, N) unit normal of the vertex's static contact
     contact_depth: np.ndarray  # (N,) m, total push-out this substep (0: no contact)
     contact_material: np.ndarray  # (6, N) combined μ_s, μ_k, e of that contact, its surface's velocity (m/s)
-    #                                 along t = (n_y, -n_x) (statics.py), and the velocity of a moving collider's
-    #                                 surface there, wx, wy (m/s; walls.py)
+    #                                 along t = (n_y, -n_x) (core/statics.c), and the velocity of a moving collider's
+    #                                 surface there, wx, wy (m/s; core/walls.c)
     perimeter_lam: np.ndarray  # (B,) the total-length constraints' multipliers this substep (perimeter.py)
     area_lam: np.ndarray  # (B,) method xpbd: the area constraints' multipliers this substep
     spring_lam: np.ndarray  # (S,) method springs: the internal springs' multipliers this substep
@@ -205,7 +211,7 @@ class State(NamedTuple):
     radius: np.ndarray  # (B,) m, farthest vertex from the centre
     edges: np.ndarray  # (5, N) edge i at the current positions, by row: start x, y (m), vector x, y (m),
     #                    1/|edge|² (1/m²)
-    c_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64, vertex i's kept contacts (sim/collide.py): the nearest
+    c_edge: np.ndarray  # (CONTACTS_PER_VERTEX, N) int64, vertex i's kept contacts (core/narrow_phase.c): the nearest
     #                    edge (by its first vertex) of a neighbouring blob, or -1; found once per step and followed
     #                    along the ring ...
     c_hit: np.ndarray  # (CONTACTS_PER_VERTEX, N) uint8 ... 1 where that contact has pushed this substep ...
@@ -219,12 +225,12 @@ class State(NamedTuple):
     stick_t: np.ndarray  # (CONTACTS_PER_VERTEX, N) ... and the point's place along it, t in [0, 1]
     steps_done: np.ndarray  # (1,) int64: steps since t = 0 (the time colliders move by)
     substeps_taken: np.ndarray  # (2,) int64: the most substeps a step took, and how many steps took more than the
-    #                             scene's `substeps`, since the run (or its resume) began (integrate.substeps_for)
-    static_pose: np.ndarray  # (S, 6) each collider's pose (walls.py): dx, dy (m), θ (rad), and a loaded wall's
+    #                             scene's `substeps`, since the run (or its resume) began (core/integrate.c)
+    static_pose: np.ndarray  # (S, 6) each collider's pose (core/walls.c): dx, dy (m), θ (rad), and a loaded wall's
     #                          s (m), V (m/s) along its load direction, and s at the substep's start (m)
     static_impulse: np.ndarray  # (S, 3) the impulses the blobs gave each collider over the last step: Jx, Jy (N s),
     #                              and their moment about its pivot (N m s)
-    placed: tuple  # per SOLVERS kind, where its colliders are now: (geom, aabb, delta: the substep's motion, walls.py)
+    placed: tuple  # per SOLVERS kind, where its colliders are now: (geom, aabb, delta: the substep's motion)
     touch: tuple  # per vertex, this substep's pushes by colliders: (static_of (2, N) int64, static_push (4, N) m:
     #               up to two colliders and their pushes; wall_of (N,) int64, wall_push (2, N) m: a loaded wall's
     #               push this iteration)
@@ -233,7 +239,7 @@ class State(NamedTuple):
     #                 touching (PAIRS_PER_BLOB B, 2) int64: the pairs in contact at the step's end ...;
     #                 touching_count (1,) int64: ... how many); empty arrays in an open world
     self_contact: tuple  # each ring's pairs of a vertex and an edge of its own this substep, and what finds them
-    #                      (sim/self_contact.py, self_contact_records): scratch, but for `zoned`, a per-blob count
+    #                      (self_contact_records): scratch, but for `zoned`, a per-blob count
     #                      of the substeps the fail-safe acted in since the run (or its resume) began
 
     @property
@@ -254,6 +260,19 @@ def blob_points(b: BlobDef) -> np.ndarray:
     theta = 2.0 * np.pi * np.arange(b.vertices) / b.vertices
     cx, cy = b.center or (0.0, 0.0)  # no centre: a blob with count, placed at random
     return np.stack([cx + b.radius * np.cos(theta), cy + b.radius * np.sin(theta)], axis=1)
+
+
+def self_contact_records(vertices: int, blobs: int) -> tuple:
+    """State.self_contact for a scene of this many vertices and blobs (core/self_contact.c): (pairs
+    (2, SELF_PER_VERTEX N) int64: each pair's vertex and edge (its first vertex); values (4, SELF_PER_VERTEX N):
+    its side σ (±1, or 0: undecided), its gap g (m), the depth D it pushed out this substep (m) and the deepest
+    it may act at (m); count (B,) int64: how many pairs each blob has, from slot SELF_PER_VERTEX × its first
+    vertex on; near (B,) uint8: whether some of a ring's chunks may meet; chunks (SELF_CHUNK_ROWS, N): the chunk
+    table; zoned (B,) int64: in how many substeps since the run began the fail-safe moved part of each ring
+    rigidly)."""
+    return (np.zeros((2, SELF_PER_VERTEX * vertices), np.int64), np.zeros((4, SELF_PER_VERTEX * vertices)),
+            np.zeros(blobs, np.int64), np.zeros(blobs, np.uint8), np.zeros((SELF_CHUNK_ROWS, vertices)),
+            np.zeros(blobs, np.int64))
 
 
 def packing_records(blobs: int) -> tuple:
@@ -348,14 +367,15 @@ def build(scene: Scene) -> tuple[Model, State]:
                   touch=(np.full((2, n), -1, np.int64), np.zeros((4, n)), np.full(n, -1, np.int64), np.zeros((2, n))),
                   packing=packing_records(blobs if scene.settings.periodic is not None else 0),
                   self_contact=self_contact_records(n, blobs))
-    if model.moving:  # (a kernel: compiled only for scenes that need it, so others print their first line at once)
-        place_initial(walls, state.static_pose, model.arrays.statics, state.placed)
-    begin_still(state.position, offsets, state.still, state.still_center, state.still_angle)
+    views = Views(_FFI, model.arrays, state)
+    if model.moving:  # the moving colliders where they are at t = 0
+        _CORE.bc_place_initial(views.context)
+    _CORE.bc_begin_still(views.context)  # every blob still from now on (sleep.c)
     return model, state
 
 
 def no_impact(count: int) -> np.ndarray:
-    """Impact records (V, E, K, P) of contacts that are not bouncing (integrate.bounce)."""
+    """Impact records (V, E, K, P) of contacts that are not bouncing (restitution.c: bounce)."""
     return np.tile([0.0, NO_BOUNCE, 0.0, 0.0], (count, 1))
 
 
@@ -395,7 +415,7 @@ def build_statics(statics: tuple[StaticDef, ...]) -> tuple[StaticSet, ...]:
 
 
 def build_walls(statics: tuple[StaticDef, ...]) -> Walls:
-    """How each collider moves, from its [[static]] table (walls.py)."""
+    """How each collider moves, from its [[static]] table (core/walls.c)."""
     S = len(statics)
     motion, pivot, drive, mass = np.zeros(S, np.int64), np.zeros((S, 2)), np.zeros((S, 3)), np.ones(S)
     path_offsets, path = np.zeros(S + 1, np.int64), []

@@ -1,5 +1,5 @@
 """What a packing measures, frame by frame, in a periodic box: packing fraction, contacts, rattlers,
-pressure and stress. The step leaves its records in State.packing (sim/collide.py writes them); this
+pressure and stress. The step leaves its records in State.packing (the contact stages of blobcli/core write them); this
 module turns them into the numbers soft-matter codes report (O'Hern et al., PRE 68, 011306 (2003);
 Boromand et al., Soft Matter 15, 5854 (2019)).
 

@@ -149,12 +149,15 @@ def crushed_light_blob(seconds: float = 5.0) -> tuple[float, float, bool]:
 
 
 def deepest_overlap(state, model) -> float:
-    """The deepest vertex inside another blob (m), over the pairs the broad phase finds."""
+    """The deepest vertex inside another blob (m), over the pairs whose bounding circles (about the vertex
+    means, through the farthest vertex) overlap: the pairs that can overlap at all."""
     from ..geometry import depth_inside_polygon
-    from ..sim.collide import find_blob_pairs
-    pairs, *_ = find_blob_pairs(state.position, model.offsets, state.awake, state.center, state.radius, state.edges,
-                                state.blob_contact_depth, state.c_hit, (0.0, 0.0, 0.0))
     ring = [state.pos[model.offsets[b]:model.offsets[b + 1]] for b in range(model.blob_count)]
+    center = np.array([r.mean(axis=0) for r in ring])
+    radius = np.array([np.hypot(*(r - c).T).max() for r, c in zip(ring, center)])
+    a, b = np.triu_indices(model.blob_count, 1)
+    near = np.hypot(*(center[a] - center[b]).T) < radius[a] + radius[b]
+    pairs = zip(a[near], b[near])
     return max((float(depth_inside_polygon(ring[x], ring[y]).max()) for a, b in pairs for x, y in ((a, b), (b, a))),
                default=0.0)
 

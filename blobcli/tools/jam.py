@@ -181,10 +181,9 @@ def report(figures: dict) -> str:
 
 
 def run_jam(scene: Scene, out: Path, seeds: int, target: float, scheduler=None, workers=None, progress=False,
-            announce=print, compiling=None) -> tuple[list[dict], bool]:
+            announce=print) -> tuple[list[dict], bool]:
     """Jam `seeds` starts of the scene through the executor; (rows in seed order, interrupted)."""
     from ..io.interrupts import caused_by_signal, pending, request_stop
-    from ..io.run import compile_scenes
     from .executor import run_tasks
     out.mkdir(parents=True, exist_ok=True)
     scenes = [seed_scene(scene, scene.settings.seed + k) for k in range(seeds)]
@@ -193,8 +192,6 @@ def run_jam(scene: Scene, out: Path, seeds: int, target: float, scheduler=None, 
              f"({scenes[0].settings.seed}..{scenes[-1].settings.seed}), p alpha = {target:g}, in {out}")
     rows = {}
     try:
-        if scheduler is None:
-            compile_scenes(scenes[:1], compiling)
         for i, row in run_tasks(run_seed, tasks, scheduler, workers, progress=progress, label="seeds",
                                 stop=request_stop):
             rows[i] = row

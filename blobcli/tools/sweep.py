@@ -211,12 +211,10 @@ def _toml_text(doc: dict) -> str:
 # --- running ------------------------------------------------------------------------------
 
 def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=False,
-              announce=print, compiling=None) -> tuple[dict, bool]:
+              announce=print) -> tuple[dict, bool]:
     """Write each point's scene, run the points that are not done (resuming interrupted ones)
     through the executor, and return ({point: summary row}, interrupted). A Ctrl-C stops the
-    loop; points a worker finished but had not yet reported are read back from their files.
-    On this machine (no scheduler), the step is compiled here first, once per configuration
-    (`compiling`: io.notice.announcer, entered around each compile), not once in each worker."""
+    loop; points a worker finished but had not yet reported are read back from their files."""
     from ..io.interrupts import caused_by_signal, pending, request_stop
     from ..io.outputs import holds_text, write_text
     from .executor import run_tasks
@@ -234,9 +232,6 @@ def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=Fa
             index.append(k)
     announce(f"blobsim: sweep {sweep.name}: {len(sweep.points)} points ({len(rows)} already done) in {out}")
     try:
-        if tasks and scheduler is None:
-            from ..io.run import compile_scenes
-            compile_scenes([load_scene(toml) for toml, _, _ in tasks], compiling)
         for i, row in run_tasks(run_point, tasks, scheduler, workers, progress=progress, label="points",
                                 stop=request_stop):
             rows[index[i]] = row
