@@ -1,7 +1,7 @@
 """The `blobsim` command: parse arguments, call the library, format the result.
 
-Heavy modules (numba, h5py) are imported inside the subcommands, so `blobsim --help`
-stays instant. Exit codes: 0 ok, 1 the run failed (runaway), 2 bad input, 130 interrupted.
+Heavy modules (numpy, h5py, the compiled core, Dask) are imported inside the subcommands, so
+`blobsim --help` stays instant. Exit codes: 0 ok, 1 the run failed (runaway), 2 bad input, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -163,7 +163,7 @@ def parser() -> argparse.ArgumentParser:
                                      "of the blobs' perimeter compliance). Exit 0: every seed jammed; 1: some seed "
                                      "failed; 2: bad input; 130: interrupted (finished seeds are kept).")
     jam.add_argument("scene", metavar="SCENE", help="a scene with [scene] periodic and blobs placed with count")
-    from .tools.jam import DEFAULT_PRESSURE  # light: no numpy, numba or dask at import
+    from .tools.jam import DEFAULT_PRESSURE  # light: no numpy or dask at import
     jam.add_argument("--pressure", type=_positive_float, default=DEFAULT_PRESSURE, metavar="P",
                      help="target pressure p × the blobs' mean perimeter compliance, dimensionless "
                           f"(default {DEFAULT_PRESSURE:g})")
@@ -224,8 +224,8 @@ def cmd_run(args) -> int:
     if args.threads is not None:
         from .io.threads import available
         if args.threads > available():
-            problems.append(f"--threads: at most {available()}, the threads numba has (NUMBA_NUM_THREADS, default: "
-                            f"the cores) (got {args.threads})")
+            problems.append(f"--threads: at most {available()}, the threads the step may use (OMP_NUM_THREADS, "
+                            f"default: the cores) (got {args.threads})")
     if problems:
         return _fail(problems)
     output = args.output

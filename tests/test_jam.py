@@ -164,7 +164,7 @@ def test_a_stopped_jam_keeps_every_packing_it_brought_to_rest(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "blobcli", "jam", str(scene), "--seeds", "2", "--workers", "0",
                              "-o", str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     partial = out / "small" / "seed-0.h5.partial"
-    deadline = time.monotonic() + 300  # (a cold numba cache compiles the step first)
+    deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None and not partial.exists():
         time.sleep(0.05)
     time.sleep(3.0)  # a few packings brought to rest

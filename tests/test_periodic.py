@@ -129,7 +129,7 @@ def test_the_periodic_scene_gives_the_same_bits_for_any_thread_count_and_when_re
     runs = []
     for threads in ("1", "2"):
         out = tmp_path / f"run{threads}.h5"
-        env = {**os.environ, "NUMBA_NUM_THREADS": threads}
+        env = {**os.environ, "OMP_NUM_THREADS": threads}
         r = blobsim("run", SCENES / "periodic.toml", "-o", out, "--steps", "240", "-q", env=env)
         assert r.returncode == 0, r.stderr
         runs.append(out)

@@ -134,7 +134,7 @@ def test_real_scheduler_and_workers_with_one_worker_killed(tmp_path):
         while not info.exists() and time.monotonic() < deadline:
             time.sleep(0.1)
         address = json.loads(info.read_text())["address"]
-        env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+        env = {**os.environ, "OMP_NUM_THREADS": "1"}
         workers = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
                                      "--host", "127.0.0.1", "--no-dashboard", "--no-nanny"], env=env,
                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(2)]

@@ -1,23 +1,25 @@
 """How many threads a run uses (issue "Fast on a busy machine"): the choice, --threads, and the same
 bits whatever the count, changed call by call."""
 
+import os
 from pathlib import Path
 
-import numba
 import pytest
 from conftest import cli
 
 from blobcli import load_scene, read_trajectory, simulate
+from blobcli.core import load
 from blobcli.io import threads as threads_module
 from blobcli.io.threads import PROBE_MAX_SECONDS, PROBE_SECONDS, ThreadChoice
 from blobcli.tools.compare import compare_files
 
 ROOT_SCENES = Path(__file__).resolve().parent.parent / "scenes"
+_, lib = load()
 
 
 def auto_choice(monkeypatch, most=2, free=None):
     """An auto choice on `most` threads; `free`: the free cores it sees (None: it cannot see the load)."""
-    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     monkeypatch.setattr(threads_module, "available", lambda: most)
     monkeypatch.setattr(threads_module, "free_cores", lambda ours=1: free)
     return ThreadChoice(None, parallel=True)
@@ -56,17 +58,33 @@ def test_probes_that_lose_come_less_often_and_a_sudden_slowdown_probes_at_once(m
 
 
 def test_fixed_counts_and_serial_builds_never_probe(monkeypatch):
+    before = lib.bc_threads()
     with ThreadChoice(1, parallel=True) as choice:
-        assert not choice.adaptive and choice.plan(80) == (1, 80) and numba.get_num_threads() == 1
-    monkeypatch.setenv("NUMBA_NUM_THREADS", "2")
+        assert not choice.adaptive and choice.plan(80) == (1, 80) and lib.bc_threads() == 1
+    assert lib.bc_threads() == before  # the calling thread's count, as it was
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
     assert not ThreadChoice(None, parallel=True).adaptive  # the user fixed it
-    monkeypatch.delenv("NUMBA_NUM_THREADS")
+    monkeypatch.delenv("OMP_NUM_THREADS")
     assert ThreadChoice(None, parallel=False).most == 1
 
 
-def test_threads_above_what_numba_has_is_bad_input(tmp_path):
+@pytest.mark.skipif(not lib.bc_has_openmp(), reason="the core is built without OpenMP: one thread")
+def test_the_pool_is_the_users_omp_num_threads_else_the_cores(monkeypatch):
+    monkeypatch.delenv(threads_module.SHARED_POOL, raising=False)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    assert threads_module.available() == len(os.sched_getaffinity(0)) and not threads_module.fixed_by_environment()
+    for text, n in (("3", 3), (" 5 ", 5), ("3,1", 3)):  # (a list: its first entry is this level's count)
+        monkeypatch.setenv("OMP_NUM_THREADS", text)
+        assert threads_module.available() == n and threads_module.fixed_by_environment()
+    for text in ("", "0", "-2", "many"):  # libgomp ignores these and keeps the cores
+        monkeypatch.setenv("OMP_NUM_THREADS", text)
+        assert threads_module.available() == len(os.sched_getaffinity(0)), text
+        assert not threads_module.fixed_by_environment(), text
+
+
+def test_threads_above_what_the_core_may_use_is_bad_input(tmp_path):
     code, out, err = cli("run", ROOT_SCENES / "gish.toml", "-o", tmp_path / "g.h5", "--threads", "999")
-    assert code == 2 and "--threads: at most" in err and "(got 999)" in err, err
+    assert code == 2 and "--threads: at most" in err and "OMP_NUM_THREADS" in err and "(got 999)" in err, err
     assert not (tmp_path / "g.h5").exists()
 
 
@@ -75,7 +93,7 @@ def test_changing_the_thread_count_call_by_call_changes_no_bit(tmp_path, monkeyp
     """The pile (120 blobs: the parallel build) with the count switched between 1 and 2 at every call,
     against a run on one thread."""
     if threads_module.available() < 2:
-        pytest.skip("numba has one thread here")
+        pytest.skip("the core has one thread here")
     sc = load_scene(ROOT_SCENES / "pile.toml")
     from blobcli.scene.schema import with_overrides
     sc = with_overrides(sc, steps=90)
@@ -86,7 +104,7 @@ def test_changing_the_thread_count_call_by_call_changes_no_bit(tmp_path, monkeyp
     def flipping_plan(self, steps):
         threads, steps = real_plan(self, steps)
         threads = 1 + next(flips) % 2
-        numba.set_num_threads(threads)
+        lib.bc_set_threads(threads)
         return threads, max(1, steps // 4)
     monkeypatch.setattr(ThreadChoice, "plan", flipping_plan)
     assert simulate(sc, tmp_path / "flip.h5").status == "complete"
@@ -150,33 +168,40 @@ def test_the_load_counts_out_the_runs_own_threads(monkeypatch):
 
 def test_a_local_workers_pool_adapts_and_a_users_count_stays_fixed(monkeypatch):
     from blobcli.tools.executor import default_workers, worker_threads
-    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     monkeypatch.delenv(threads_module.SHARED_POOL, raising=False)
     env = worker_threads()
-    assert env == {"NUMBA_NUM_THREADS": str(default_workers()), threads_module.SHARED_POOL: "1"}
+    assert env == {"OMP_NUM_THREADS": str(default_workers()), threads_module.SHARED_POOL: "1"}
     for k, v in env.items():
         monkeypatch.setenv(k, v)
     monkeypatch.setattr(threads_module, "available", lambda: 2)
     assert ThreadChoice(None, parallel=True).adaptive  # a worker's run: adapts within the pool
     monkeypatch.delenv(threads_module.SHARED_POOL)
-    monkeypatch.setenv("NUMBA_NUM_THREADS", "1")  # the user's own count
-    assert worker_threads() == {"NUMBA_NUM_THREADS": "1"}
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")  # the user's own count
+    assert worker_threads() == {"OMP_NUM_THREADS": "1"}
+    assert not ThreadChoice(None, parallel=True).adaptive
 
 
-def test_local_workers_keep_the_allocators_defaults_and_no_profiler():
+def test_local_workers_keep_the_allocators_defaults_and_no_profiler(monkeypatch):
     """Dask's MALLOC_TRIM_THRESHOLD_ made every one of the step's temporaries of 128 KiB or more come
     from new pages (17,000 page faults a second in a jam's worker); its profiler took the core 100 times
-    a second (tools/executor.py)."""
-    from blobcli.tools.executor import run_tasks
+    a second (tools/executor.py). The workers' core pool has every core (adapting), their BLAS one
+    thread; and this process's own environment gets no OMP_NUM_THREADS from Dask (it would fix the
+    count of every later run here)."""
+    from blobcli.tools.executor import default_workers, run_tasks
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.delenv(threads_module.SHARED_POOL, raising=False)
 
     def inside():
         import os
 
         import dask
         return (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS"),
-                os.environ.get(threads_module.SHARED_POOL), dask.config.get("distributed.worker.profile.enabled"))
+                os.environ.get(threads_module.SHARED_POOL), os.environ.get("OPENBLAS_NUM_THREADS"),
+                os.environ.get("MKL_NUM_THREADS"), dask.config.get("distributed.worker.profile.enabled"))
     [(_, seen)] = list(run_tasks(inside, [()], workers=1))
-    assert seen == (None, "1", "1", False)
+    assert seen == (None, str(default_workers()), "1", "1", "1", False)
+    assert "OMP_NUM_THREADS" not in os.environ and not threads_module.fixed_by_environment()
 
 
 def test_the_cores_share_is_judged_over_calls_not_one_short_call(monkeypatch):

@@ -373,7 +373,7 @@ def test_a_loaded_wall_on_the_parallel_build_gives_the_same_bits_for_any_thread_
     outputs = []
     for threads, seed in (("1", "0"), ("2", "12345")):
         out = tmp_path / f"run{threads}.h5"
-        env = {**os.environ, "NUMBA_NUM_THREADS": threads, "PYTHONHASHSEED": seed}
+        env = {**os.environ, "OMP_NUM_THREADS": threads, "PYTHONHASHSEED": seed}
         r = blobsim("run", tmp_path / "piston40.toml", "-o", out, "--steps", "150", "-q", env=env)
         assert r.returncode == 0, r.stderr
         outputs.append(out)

@@ -39,10 +39,10 @@ def _handler(signum, frame):
 
 
 def _quiet_interrupts(unraisable) -> None:
-    """sys.unraisablehook: an Interrupted raised while a __del__ runs (llvmlite's, as numba compiles) is
-    swallowed by Python, which printed its traceback, and the command ran on to its end (a SIGINT 0.5 s
-    after the start of a long run, in CI: killed after 120 s). Silent here; it stays pending, so the run
-    stops at its first step boundary and exits 130. Anything else goes to the hook that was there."""
+    """sys.unraisablehook: an Interrupted raised while a __del__ runs (any object's finaliser) is
+    swallowed by Python, which prints its traceback, and the command would run on to its end. Silent here;
+    it stays pending, so the run stops at its first step boundary and exits 130. Anything else goes to the
+    hook that was there."""
     if not isinstance(unraisable.exc_value, Interrupted):
         _previous_hook(unraisable)
 
@@ -51,9 +51,9 @@ _previous_hook = sys.unraisablehook
 
 
 def _quiet_printed_interrupts(kind, value, tb) -> None:
-    """sys.excepthook: C code that prints an error and raises another (PyErr_Print: numba's _dispatcher,
-    when the import of numba._devicearray is cut by a SIGTERM, prints the Interrupted and raises
-    "ImportError: numba._devicearray failed to import") prints nothing for an Interrupted; the command then
+    """sys.excepthook: C code that prints an error and raises another (PyErr_Print in an extension
+    module's import cut by a SIGTERM prints the Interrupted and raises an ImportError) prints nothing for an
+    Interrupted; the command then
     stops with exit 130 (caused_by_signal). Anything else goes to the hook that was there."""
     if not issubclass(kind, (Interrupted, KeyboardInterrupt)):
         _previous_excepthook(kind, value, tb)

@@ -7,6 +7,16 @@ another name, both build the same scene (bench.scene_text), settle it, and then 
 timed from the same saved state, the two builds alternating round by round. It prints each build's
 median and the ratio per round, and whether the two give the same bits (a change meant to be faster
 only should). Figures, not a test.
+
+The other tree's compiled core (blobcli/core, built by cffi) is imported with the copy. When the tree
+has none built for this Python, or one older than its C sources, ab_step builds it in the copy first
+(`python -m blobcli.core.build` run with the copy as `blobcli` in the working directory, a few seconds;
+the tree itself is left as it is). To build it in the tree instead, once: `cd OTHER && python -m
+blobcli.core.build`. A tree whose modules import numba (a commit from before numba left blobsim, with or
+without a compiled core) needs numba in this environment, which blobsim does not install: `pip install
+numba`; without it ab_step says so in one line and stops.
+
+    git worktree add /tmp/before HEAD~1 && python -m blobcli.tools.ab_step /tmp/before
 """
 
 from __future__ import annotations
@@ -15,6 +25,7 @@ import argparse
 import importlib
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -25,6 +36,41 @@ def _arrays(state):
     """Every array of a state, its tuples of arrays (the colliders' rows) opened."""
     for x in state:
         yield from (_arrays(x) if isinstance(x, tuple) else (x,))
+
+
+def _imports_numba(package: Path) -> bool:
+    """Whether a module of the package imports numba at its top (as a numba step's modules do)."""
+    return any(line.startswith(("import numba", "from numba"))
+               for path in package.rglob("*.py") for line in path.read_text(errors="replace").splitlines())
+
+
+def _has_numba() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _ready_core(copy: Path, work: Path) -> str | None:
+    """Make the copied package's compiled core loadable: when it has one (core/build.py) that does not load
+    (not built for this Python, or older than its C sources), build it in the copy. None when ready (or
+    there is no compiled core), else what went wrong, in one line."""
+    if not (copy / "core" / "build.py").is_file():
+        return None
+    work.mkdir()
+    (work / "blobcli").symlink_to(copy, target_is_directory=True)  # build.py builds beside its resolved self
+
+    def run(*args):
+        return subprocess.run([sys.executable, *args], cwd=work, capture_output=True, text=True)
+    if run("-c", "from blobcli.core import load; load()").returncode == 0:
+        return None
+    print(f"ab_step: building the other tree's compiled core in a copy ({copy.name})", file=sys.stderr)
+    built = run("-m", "blobcli.core.build")
+    if built.returncode != 0:
+        last = (built.stderr.strip() or built.stdout.strip() or "no output").splitlines()[-1]
+        return f"its compiled core did not build (python -m blobcli.core.build: {last})"
+    return None
 
 
 def _runner(package: str, blobs: int, layout: str, lines: str, settle: int, steps: int):
@@ -63,13 +109,21 @@ def main(argv=None) -> int:
     if not (source / "sim" / "pipeline.py").is_file():
         print(f"ab_step: {source}: not a blobcli package", file=sys.stderr)
         return 2
+    if _imports_numba(source) and not _has_numba():
+        print(f"ab_step: {source} steps with numba, which is not installed here: pip install numba", file=sys.stderr)
+        return 2
     lines = args.scene_lines.replace("\\n", "\n")
     with tempfile.TemporaryDirectory(prefix="blobsim-ab-") as tmp:
-        shutil.copytree(source, Path(tmp) / "blobcli_other", ignore=shutil.ignore_patterns("__pycache__"))
+        copy = Path(tmp) / "blobcli_other"
+        shutil.copytree(source, copy, ignore=shutil.ignore_patterns("__pycache__"))
+        problem = _ready_core(copy, Path(tmp) / "build")
+        if problem:
+            print(f"ab_step: {source / 'core'}: {problem}", file=sys.stderr)
+            return 2
         sys.path.insert(0, tmp)
         runs = {name: _runner(package, args.blobs, args.layout, lines, args.settle, args.steps)
                 for name, package in (("this", "blobcli"), ("other", "blobcli_other"))}
-        (_, here), (_, there) = runs["this"](), runs["other"]()  # also compiles both
+        (_, here), (_, there) = runs["this"](), runs["other"]()
         times = {"this": [], "other": []}
         for _ in range(args.rounds):
             for name, run in runs.items():

@@ -28,13 +28,11 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "peer_speedup_piled": 10.0,
     "peer_speedup_240_1x10": 5.0,  # the 100-blob pile at pymunk's settings: dt = 1/240 s, 1 substep, 10 iterations
     "piled_over_apart_1000": 2.0,
-    "one_blob_1000_steps_warm_s": 1.0,
+    "one_blob_1000_steps_s": 1.0,
     "one_blob_step_us": 1.5,
     "scaling_1000_over_100": 11.0,
     "record_every_step_overhead": 0.10,
     "sweep_speedup_16_points": 3.0,
-    "c_ratio_defaults": 2.0,
-    "c_ratio_1x1": 3.0,
     "thread_speedup_2": 1.8,
     "sleeping_over_awake": 0.10,
     "walls_share_piston": 0.10,  # the piston scene's moving walls and colliders, of its step (issue "Worlds that move")
@@ -112,7 +110,7 @@ def measure_blobsim(blobs: int, layout: str, repeats: int, settle_steps: int, se
     params = build_params(scene)
     step_settings = settings(model, params)
     advance(state, model, params, max(settle_steps, 1))  # piled: let them fall into a pile first
-    inner = max(1, min(1000, 20000 // (blobs * VERTICES // 32 + 1)))  # steps per compiled call
+    inner = max(1, min(1000, 20000 // (blobs * VERTICES // 32 + 1)))  # steps per call (one bc_advance runs them all)
     sec = _median_time(lambda: advance(state, model, params, inner, step_settings=step_settings), repeats, 1) / inner
     n = model.vertex_count
     return {"blobs": blobs, "layout": layout, "vertices": n, "ms_per_step": sec * 1e3,
@@ -133,7 +131,7 @@ def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tupl
     model, state = build(scene)
     params = build_params(scene)
     advance(state, model, params, settle_steps)
-    advance(state, model, params, 1, {})  # warm the clocked path
+    advance(state, model, params, 1, {})  # one clocked step untimed: the step's views and scratch are made
     clock, contacts = {}, []
     for _ in range(steps):
         advance(state, model, params, 1, clock)
@@ -141,92 +139,25 @@ def _profile(scene_text_: str, name: str, settle_steps: int, steps: int) -> tupl
     return {k: v / steps for k, v in clock.items()}, int(np.median(contacts)), (model, params)
 
 
-def _core_scene(blobs: int, substeps: int, iterations: int) -> str:
-    """Blobs apart on a floor, damping off: only the core stages move anything."""
-    return scene_text(blobs, "apart", f"damping = 0.0\nsubsteps = {substeps}\nmax_substeps = {substeps}\n"
-                                      f"iterations = {iterations}")
-
-
-def measure_c_reference(blobs: int, substeps: int, iterations: int, steps: int, repeats: int) -> dict | None:
-    """The core substep as a plain C loop (core_ref.c, built here with the system C compiler),
-    against the numba step's core stages on one thread, and whether both give the same bits.
-    None when there is no C compiler."""
-    import ctypes
-    import shutil
-
-    import numba
-
-    from ..scene.schema import parse_scene
-    from ..sim.integrate import MIN_REST_SPEED, REST_SPEED_FACTOR
-    from ..sim.model import build, build_params
-    from ..sim.pipeline import advance
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        return None
-    scene = parse_scene(_core_scene(blobs, substeps, iterations), "bench-cref")
-    with tempfile.TemporaryDirectory() as d:
-        lib = Path(d) / "core_ref.so"
-        subprocess.run([cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o", str(lib),
-                        str(Path(__file__).with_name("core_ref.c")), "-lm"], check=True, capture_output=True)
-        c = ctypes.CDLL(str(lib))
-        model, state = build(scene)
-        params = build_params(scene)
-        blob, floor = scene.blobs[0], scene.statics[0]
-        mu_s = math.sqrt(blob.static_friction * floor.static_friction)
-        mu_k = math.sqrt(blob.friction * floor.friction)
-        arrays = [np.ascontiguousarray(a) for a in (model.offsets, state.position.copy(), state.previous.copy(),
-                                                    state.velocity.copy(), model.inv_mass, model.rest_length,
-                                                    model.compliance, np.zeros(model.vertex_count),
-                                                    model.target_area, np.zeros(model.vertex_count),
-                                                    model.rest_perimeter, np.zeros(model.blob_count),
-                                                    np.zeros((model.blob_count, 4)), state.impact.copy())]
-        g, h = math.hypot(*params.gravity), params.dt / substeps
-        rest_speed = max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED)  # as the step's (pipeline._advance)
-        ptr = ctypes.POINTER(ctypes.c_double)
-
-        def run_c(n_steps):
-            off, *floats = arrays
-            c.core_steps(ctypes.c_long(n_steps), ctypes.c_long(substeps), ctypes.c_long(iterations),
-                         ctypes.c_double(params.dt), ctypes.c_double(params.gravity[0]),
-                         ctypes.c_double(params.gravity[1]), ctypes.c_long(model.blob_count),
-                         off.ctypes.data_as(ctypes.POINTER(ctypes.c_long)), *[a.ctypes.data_as(ptr) for a in floats],
-                         ctypes.c_double(mu_s), ctypes.c_double(mu_k),
-                         ctypes.c_double(max(blob.restitution, floor.restitution)), ctypes.c_double(rest_speed))
-        run_c(steps)
-        threads = numba.get_num_threads()
-        numba.set_num_threads(1)
-        try:
-            advance(state, model, params, steps)
-            same = bool(np.array_equal(arrays[1], state.position))
-            deviation = float(np.max(np.abs(arrays[1] - state.position)))
-            c_sec = _median_time(lambda: run_c(1), repeats, 10) / substeps
-            per_step, _, _ = _profile(_core_scene(blobs, substeps, iterations), "bench-cref", 0, 10 * repeats)
-        finally:
-            numba.set_num_threads(threads)
-    numba_sec = sum(per_step.get(k, 0.0) for k in CORE_STAGES) / substeps
-    n = model.vertex_count
-    return {"blobs": blobs, "substeps": substeps, "iterations": iterations, "same_bits": same,
-            "max_deviation_m": deviation, "c_ns": c_sec * 1e9 / n, "numba_ns": numba_sec * 1e9 / n,
-            "ratio": numba_sec / c_sec}
-
-
 def measure_threads(blobs: int, steps: int) -> dict:
-    """The core substep of blobs apart on one thread and on every thread numba has."""
-    import numba
-    threads = numba.get_num_threads()
+    """The core substep of blobs apart on one thread and on every thread the step may use."""
+    from ..core import load
+    from ..io.threads import available
+    lib = load()[1]
+    threads, before = available(), lib.bc_threads()
     out = {}
     for n in sorted({1, threads}):
-        numba.set_num_threads(n)
+        lib.bc_set_threads(n)
         try:
             out[n] = measure_core(blobs, steps)["ns_per_vertex_substep"]
         finally:
-            numba.set_num_threads(threads)
+            lib.bc_set_threads(before)
     return {"blobs": blobs, "threads": threads, "ns_by_threads": out, "speedup": out[1] / out[threads]}
 
 
 def measure_one_blob_step(repeats: int) -> dict:
-    """µs per step of one blob on a floor at the defaults, 1,000 steps per compiled call: what
-    `study`, `stress` and small scenes pay per step, Python outside the loop."""
+    """µs per step of one blob on a floor at the defaults, 1,000 steps per call of advance (one call of the
+    core's bc_advance): what `study`, `stress` and small scenes pay per step, Python outside the loop."""
     from ..scene.schema import parse_scene
     from ..sim.model import build, build_params
     from ..sim.pipeline import advance, settings
@@ -369,20 +300,16 @@ def _run_seconds(args, env) -> float:
     return time.perf_counter() - t0
 
 
-def measure_startup(repeats: int, cold: bool = True) -> dict:
-    """Wall time of `blobsim run` on a one-blob, 1,000-step scene: warm numba cache, and (cold)
-    with an empty one, which compiles every kernel the run needs."""
+def measure_startup(repeats: int) -> dict:
+    """Wall time of `blobsim run` on a one-blob, 1,000-step scene, each run a new process from start to exit:
+    Python's start, the imports, the compiled core loaded (nothing is compiled at run time), the run, the
+    file written. The median of `repeats` runs."""
     with tempfile.TemporaryDirectory() as d:
         scene = Path(d) / "one.toml"
         scene.write_text(scene_text(1, "apart", "steps = 1000"))
         out = str(Path(d) / "one.h5")
-        colds = []
-        for k in range(max(1, repeats // 2) if cold else 0):
-            env = {**os.environ, "NUMBA_CACHE_DIR": str(Path(d) / f"cache{k}")}
-            colds.append(_run_seconds(["run", str(scene), "-o", out, "-q"], env))
-        env = {**os.environ, "NUMBA_CACHE_DIR": str(Path(d) / "cache0")} if cold else dict(os.environ)
-        warm = [_run_seconds(["run", str(scene), "-o", out, "-q"], env) for _ in range(repeats)]
-    return {"cold_s": statistics.median(colds) if colds else None, "warm_s": statistics.median(warm)}
+        runs = [_run_seconds(["run", str(scene), "-o", out, "-q"], dict(os.environ)) for _ in range(repeats)]
+    return {"run_s": statistics.median(runs)}
 
 
 def measure_recording(blobs: int, steps: int, repeats: int) -> dict:
@@ -456,7 +383,7 @@ def measure_busy(blobs: int, steps: int, tries: int) -> dict:
     with tempfile.TemporaryDirectory() as d:
         scene = Path(d) / "pile.toml"
         scene.write_text(scene_text(blobs, "piled", f"steps = {steps}"))
-        _run_wall(_start_run(scene, Path(d) / "warm.h5"))  # the build compiled (or loaded) once
+        _run_wall(_start_run(scene, Path(d) / "first.h5"))  # the files in the page cache, as for the runs timed
         alone, pair, busy = [], [], []
         for k in range(tries):
             alone.append(_run_wall(_start_run(scene, Path(d) / f"a{k}.h5")))
@@ -492,14 +419,12 @@ def run_bench(quick: bool = False) -> dict:
                                **measure_floor(100, PEER_SETTINGS)} if peer else None
     results["core"] = measure_core(counts[-1], 10 if quick else 40)
     results["one_blob"] = measure_one_blob_step(repeats)
-    results["c_reference"] = [measure_c_reference(counts[-1], s, i, 3 if quick else 10, 3 if quick else 5)
-                              for s, i in ((4, 2), (1, 1))]
     results["threads"] = measure_threads(counts[-1], 10 if quick else 40)
     results["busy"] = measure_busy(60, 200 if quick else 600, 1 if quick else 5)
     results["stages"] = measure_stages(counts[-1], 30 if quick else 120)
     results["walls"] = measure_walls(60, 20 if quick else 200)
     results["sleeping"] = measure_sleeping(counts[-1], 240 if quick else 1500, 5 if quick else 20)
-    results["startup"] = measure_startup(2 if quick else 5, cold=not quick)  # a cold start compiles for seconds
+    results["startup"] = measure_startup(2 if quick else 5)
     results["recording"] = measure_recording(10 if quick else 100, 50 if quick else 600, 1 if quick else 3)
     results["memory"] = measure_memory(10 if quick else 100, 100 if quick else 1000)
     results["sweep"] = measure_sweep(1 if quick else 16, 10 if quick else 300)
@@ -531,16 +456,6 @@ def format_bench(r: dict) -> str:
                  f"(target <= {t['core_ns_per_vertex_substep_1000']:g})")
     lines.append(f"one-blob step at the defaults: {r['one_blob']['us_per_step']:.2f} µs "
                  f"(target <= {t['one_blob_step_us']:g})")
-    for ref in r["c_reference"]:
-        if ref is None:
-            lines.append("C reference: skipped (no C compiler: install gcc to compare against a plain C loop)")
-            break
-        target = t["c_ratio_defaults"] if (ref["substeps"], ref["iterations"]) == (4, 2) else t["c_ratio_1x1"]
-        lines.append(f"core vs a plain C loop over the same arrays at {ref['blobs']} blobs, "
-                     f"{ref['substeps']} × {ref['iterations']}, one thread: {ref['numba_ns']:.1f} vs {ref['c_ns']:.1f} "
-                     f"ns/vertex-substep, {ref['ratio']:.2f}x; "
-                     + ("same bits" if ref["same_bits"] else f"positions differ by {ref['max_deviation_m']:.1e} m")
-                     + f" (target <= {target:g}x)")
     th = r["threads"]
     lines.append(f"core at {th['blobs']} blobs: " + ", ".join(f"{ns:.1f} ns on {n} thread{'s' * (n > 1)}"
                                                              for n, ns in th["ns_by_threads"].items())
@@ -585,9 +500,8 @@ def format_bench(r: dict) -> str:
                  f"{sl['ms_per_step_awake']:.3f} ms awake, {100 * sl['ratio']:.1f}% "
                  f"(target <= {100 * t['sleeping_over_awake']:g}%)")
     s = r["startup"]
-    cold = f"{s['cold_s']:.2f} s" if s["cold_s"] is not None else "not measured with --quick"
-    lines.append(f"blobsim run, 1 blob, 1000 steps: cold cache {cold}, warm {s['warm_s']:.2f} s "
-                 f"(target warm <= {t['one_blob_1000_steps_warm_s']:g} s)")
+    lines.append(f"blobsim run, 1 blob, 1000 steps, a new process from start to exit: {s['run_s']:.2f} s "
+                 f"(target <= {t['one_blob_1000_steps_s']:g} s)")
     rec = r["recording"]
     lines.append(f"recording every step vs every 10th ({rec['blobs']} blobs, {rec['steps']} steps): "
                  f"{rec['every_1_s']:.3f} s vs {rec['every_10_s']:.3f} s, {100 * rec['overhead']:+.1f}% "

@@ -30,25 +30,34 @@ def _quiet_workers() -> dict:
       of the step's time spent in the kernel. The workers keep glibc's own defaults;
     - no statistical profiler in the workers (it samples every thread's stack 100 times a second,
       each time taking the core from the run; the dashboard's profile page stays empty);
-    - the servers' event-loop check every second instead of every 20 ms."""
+    - the servers' event-loop check every second instead of every 20 ms.
+    And no OMP_NUM_THREADS before the spawn: Dask writes its pre-spawn environment (OMP_NUM_THREADS=1
+    by default) into this process's own os.environ, where it would read as the user's fixed count
+    (io/threads.py) for every later run here. The workers get theirs from worker_threads()."""
     import dask
     import distributed  # noqa: F401 - loads distributed's defaults into dask.config
     environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
-               if k != "MALLOC_TRIM_THRESHOLD_"}
+               if k not in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS")}
     return {"distributed.nanny.pre-spawn-environ": environ, "distributed.worker.profile.enabled": False,
             "distributed.admin.tick.interval": "1s"}
 
 
+# numpy's BLAS in a worker: one thread (the workers already take a core each). Named for each library, as
+# OMP_NUM_THREADS is the compiled core's pool (OpenBLAS reads OPENBLAS_NUM_THREADS before OMP_NUM_THREADS).
+SINGLE_THREADED_BLAS = {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
 def worker_threads() -> dict:
-    """The environment that sets a local worker's numba threads. One single-threaded worker process
-    per core, each with a pool of every core's threads that its runs use only while the cores are
-    free (io/threads.py): a run starts on one thread beside busy workers and takes the idle ones'
-    cores at the end (the last seed of a jam: measured 1.5× faster a step on two threads than on
-    one). A NUMBA_NUM_THREADS of the user's is kept, and fixed."""
+    """The environment that sets a local worker's threads for the compiled core's OpenMP pool
+    (OMP_NUM_THREADS: libgomp reads it when the core is loaded, in the worker). One single-threaded
+    worker process per core, each with a pool of every core's threads that its runs use only while
+    the cores are free (io/threads.py): a run starts on one thread beside busy workers and takes the
+    idle ones' cores at the end (the last seed of a jam). An OMP_NUM_THREADS of the user's is kept,
+    and fixed."""
     from ..io.threads import SHARED_POOL, fixed_by_environment
     if fixed_by_environment():
-        return {"NUMBA_NUM_THREADS": os.environ["NUMBA_NUM_THREADS"]}
-    return {"NUMBA_NUM_THREADS": str(default_workers()), SHARED_POOL: "1"}
+        return {"OMP_NUM_THREADS": os.environ["OMP_NUM_THREADS"]}
+    return {"OMP_NUM_THREADS": str(default_workers()), SHARED_POOL: "1"}
 
 
 class SchedulerError(Exception):
@@ -88,7 +97,7 @@ def run_tasks(fn: Callable, tasks: list[tuple], scheduler: str | None = None, wo
         n = workers or default_workers()
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                                host="127.0.0.1", silence_logs=logging.CRITICAL,  # blobsim says what failed
-                               env={**worker_threads(), "OMP_NUM_THREADS": "1"},
+                               env={**worker_threads(), **SINGLE_THREADED_BLAS},
                                preload=["blobcli.tools.quiet_worker"])
     try:
         client = Client(cluster if cluster is not None else scheduler, timeout=f"{CONNECT_SECONDS}s")

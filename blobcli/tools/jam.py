@@ -112,7 +112,7 @@ def excess_contacts(jammed: dict, past: list[dict]) -> list[tuple[float, float]]
 
 def chosen_threads(choice):
     """pipeline.advance, each call on the threads `choice` (io/threads.py) plans: one thread while the
-    machine is busy (two jams side by side on two threads each ran 8× slower than alone). A pending
+    machine is busy (two runs side by side on two threads each ran 20-60× slower than alone). A pending
     signal (io/interrupts.py) stops it between calls, as KeyboardInterrupt."""
     import time
 
