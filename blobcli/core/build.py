@@ -113,9 +113,11 @@ def _check_compiler() -> None:
                  "(Debian/Ubuntu: apt-get install python3-dev), then pip install again")
 
 
-def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None = None):
+def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None = None, relative: bool = False):
     """A cffi FFI set up to build `module` from the core's C files (or from the stage files named in
-    `only`, with the files every stage needs: threads.c, scratch.c)."""
+    `only`, with the files every stage needs: threads.c, scratch.c). `relative`: the paths relative to the
+    working directory, as setup.py's build wants them (pip runs it from the project root); cffi's own
+    compile, which works in a folder of its own, wants them absolute."""
     from cffi import FFI
 
     _check_compiler()
@@ -124,13 +126,15 @@ def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None
     builder.cdef(cdef_text(root, only))
     files = sources(root) if only is None else [root / f"{name}.c" for name in ["threads", "scratch", *only]]
     preamble = "".join(f'#include "{h.name}"\n' for h in api_headers(root, only))
-    builder.set_source(module, preamble, sources=[str(f) for f in files], include_dirs=[str(root)],
+    def path(p: Path) -> str:
+        return os.path.relpath(p) if relative else str(p)
+    builder.set_source(module, preamble, sources=[path(f) for f in files], include_dirs=[path(root)],
                        extra_compile_args=flags, extra_link_args=link,
                        define_macros=[("BC_SOURCE_HASH", f'"{source_hash(root)}"')], libraries=["m"])
     return builder
 
 
-ffibuilder = make_builder() if __name__ == "__cffi__" else None  # (setup.py's cffi_modules runs this file so)
+ffibuilder = make_builder(relative=True) if __name__ == "__cffi__" else None  # (setup.py's cffi_modules)
 
 
 def build_in_place() -> Path:
