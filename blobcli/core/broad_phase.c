@@ -79,15 +79,17 @@ static double array_max(const double *a, int64_t n) {
     return most;
 }
 
-/* Each blob's centre, radius and edge table, sleeping ones' too: from their frozen positions they come out the
- * same bits every substep, so the narrow phase reads the same sleeping edges however the steps are split into
- * calls (and after a resume, when the scratch starts empty). */
-static void blob_bounds(const bcContext *ctx) {
+/* Each blob's centre, radius and edge table; with `everyone`, sleeping ones' too (the broad phase: from their
+ * frozen positions they come out the same bits every substep, so the narrow phase reads the same sleeping edges
+ * however the steps are split into calls, and after a resume, when the scratch starts empty); without, only the
+ * awake blobs' (the narrow phase: a sleeping blob's have not changed since). */
+void bc_blob_bounds(const bcContext *ctx, int everyone) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     const int64_t N = m->vertex_count;
     const double *pos = s->position;
     BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
+        if (!(everyone || s->awake[b])) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         double cx = 0.0, cy = 0.0;
         for (int64_t i = o; i < e; i++) {
@@ -417,7 +419,7 @@ int64_t bc_find_blob_pairs(const bcContext *ctx) {
         ctx->w->pair_count = 0;
         return 0;
     }
-    blob_bounds(ctx);
+    bc_blob_bounds(ctx, 1);
     bcBox box = bc_box(ctx->c->box_x, ctx->c->box_y, ctx->c->box_tilt);
     bool periodic = box.lx > 0.0; /* cells tile the box; neighbours and distances wrap round it */
     Grid g = periodic ? periodic_grid(ctx, box) : open_grid(ctx);

@@ -11,6 +11,10 @@
  * (pair_count 0) and the step must stop. */
 int64_t bc_find_blob_pairs(const bcContext *ctx);
 
+/* Each blob's centre, radius and edge table (s->center, radius, edges): every blob's with `everyone`, else
+ * the awake blobs' (the narrow phase's: a sleeping blob's have not changed since the broad phase) */
+void bc_blob_bounds(const bcContext *ctx, int everyone);
+
 /* The impact records of this substep's pairs into w->pair_impact: each pair's kept one (s->pair_key,
  * s->pair_impact, s->pair_count), or a fresh record */
 void bc_carry_impacts(const bcContext *ctx);

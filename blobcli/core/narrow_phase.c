@@ -21,6 +21,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "broad_phase.h"
 #include "collide_limits.h"
 #include "narrow_phase.h"
 #include "parallel.h"
@@ -33,41 +34,6 @@ static const double BROAD_MARGIN = 0.25; /* × the larger radius: the broad phas
 static const double CONTACT_SLOP = 0.02; /* × the blob's radius: room in the kept contacts' margin for the
                                           * solver's own corrections */
 static const int64_t NO_EDGE = INT64_MAX; /* above the bits of any squared distance */
-
-/* Each blob's centre, radius and edge table (edges: rows x, y, e_x, e_y, 1 / |e|², one per quantity so that the
- * loop over a blob's edges reads contiguous memory); without `everyone`, only the awake blobs' (a sleeping blob's
- * have not changed since the broad phase computed them from its frozen positions). */
-static void blob_bounds(const bcContext *ctx, bool everyone) {
-    const bcModel *m = ctx->m;
-    bcState *s = ctx->s;
-    const int64_t n = m->vertex_count, *offsets = m->offsets;
-    const uint8_t *awake = s->awake;
-    const double *pos = s->position;
-    double *center = s->center, *radius = s->radius, *edges = s->edges;
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
-        if (!(everyone || awake[b])) continue;
-        int64_t o = offsets[b], e = offsets[b + 1];
-        double cx = 0.0, cy = 0.0;
-        for (int64_t i = o; i < e; i++) {
-            double x = pos[i], y = pos[n + i];
-            int64_t j = bc_next_in_ring(i, o, e);
-            double ex = pos[j] - x, ey = pos[n + j] - y;
-            double len2 = ex * ex + ey * ey;
-            edges[i] = x;
-            edges[n + i] = y;
-            edges[2 * n + i] = ex;
-            edges[3 * n + i] = ey;
-            edges[4 * n + i] = len2 > 0.0 ? 1.0 / len2 : 0.0;
-            cx += x;
-            cy += y;
-        }
-        cx /= (double)(e - o);
-        cy /= (double)(e - o);
-        center[2 * b] = cx;
-        center[2 * b + 1] = cy;
-        radius[b] = bc_ring_radius(pos, n, o, e, cx, cy);
-    });
-}
 
 /* For each awake blob b: its centre and radius now, and moved[b], how far its vertices are, at most, from where
  * its contacts were found (its anchor). */
@@ -365,7 +331,7 @@ void bc_keep_blob_contacts(const bcContext *ctx, int first, double reach_time, d
         stale[a] |= outgrown[b] && awake[a];
         stale[b] |= outgrown[a] && awake[b];
     }
-    blob_bounds(ctx, false);
+    bc_blob_bounds(ctx, 0);
     renew(ctx, outgrown, reach_time, g);
     /* How far each blob may still go from here: its budget, plus what it has moved already (its anchor stays where
      * it was, so its partners' contacts found before stay valid). A sleeping blob does not move. */
