@@ -17,7 +17,6 @@
 #include "measure.h"
 #include "narrow_phase.h"
 #include "perimeter.h"
-#include "ring.h"
 #include "restitution.h"
 #include "scratch.h"
 #include "self_contact.h"
@@ -35,8 +34,6 @@ enum {
     LAP_SLEEP
 };
 
-static const double REST_SPEED_FACTOR = 2.0; /* no bounce below this × |g| h of approach speed ... */
-static const double MIN_REST_SPEED = 0.01;   /* ... nor below this (m/s): integrate.py */
 
 static double now(void) {
     struct timespec t;
@@ -132,7 +129,7 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
         int64_t substeps = bc_substeps_for(ctx, g);
         double h = c->dt / (double)substeps;
         double damping = exp(-c->damping * h);
-        double rest_speed = bc_max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED); /* slower impacts never bounce */
+        double rest_speed = bc_rest_speed(g, h); /* slower impacts never bounce (restitution.c) */
         s->substeps_taken[0] = s->substeps_taken[0] > substeps ? s->substeps_taken[0] : substeps;
         s->substeps_taken[1] += substeps > c->substeps;
         if (periodic) /* the step's contact impulses, for the stress (packing.py) */
