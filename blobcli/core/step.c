@@ -8,6 +8,7 @@
  */
 #define _POSIX_C_SOURCE 199309L /* clock_gettime under -std=c11 */
 #include <math.h>
+#include <stdbool.h>
 #include <time.h>
 
 #include "area.h"
