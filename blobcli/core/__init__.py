@@ -48,9 +48,9 @@ _TYPES = {np.dtype(np.float64): "double *", np.dtype(np.int64): "int64_t *", np.
 
 
 class Views:
-    """The C structs over one run's arrays. `ffi` is the module's (the installed extension's, or a stage
-    module's: build.stage_module). Every array must be C-contiguous and of the type the header says;
-    one that is not is refused (a copy would leave the step writing somewhere nobody reads)."""
+    """The C structs over one run's arrays, for the extension's `ffi`. Every array must be C-contiguous and
+    of the type the header says; one that is not is refused (a copy would leave the step writing somewhere
+    nobody reads)."""
 
     def __init__(self, ffi, arrays, state, settings=None, parallel: bool = False):
         self.ffi = ffi

@@ -3,12 +3,13 @@
 extension module blobcli.core._blobcore.
 
 cffi reads the declarations of `blobcore.h` and of every header whose first line says "(read by
-cffi)": the stages' entry points, which the tests call one by one against the step's reference.
+cffi)": the driver's and the stages' entry points (tests call some stages one by one) and the sizes
+Python reads (lib.BC_*).
 
 Flags: -std=c11 -O3 -ffp-contract=off (GNU C would fuse a*b + c into one rounding; the step's bits
 are those of separate roundings), never -ffast-math. OpenMP where the compiler has it (-fopenmp);
 without it the same code runs serially, with the same bits. BLOBSIM_SANITIZE=1 in the environment
-builds with AddressSanitizer and UndefinedBehaviorSanitizer instead (the slow tier's memory checks).
+builds with AddressSanitizer and UndefinedBehaviorSanitizer instead (CI's sanitizer tier, .ci/run).
 
 `python -m blobcli.core.build` rebuilds the extension in place, without pip: for work on the C.
 """
@@ -51,20 +52,17 @@ def source_hash(root: Path = HERE) -> str:
     return digest.hexdigest()[:16]
 
 
-def api_headers(root: Path = HERE, only: list[str] | None = None) -> list[Path]:
-    """blobcore.h, then each header marked "(read by cffi)" on its first line: the stage files' (those named
-    in `only`, if given) and those of no stage file (shared constants)."""
-    marked = [h for h in headers(root) if h.name != "blobcore.h" and CFFI_MARK in h.read_text().split("\n", 1)[0]]
-    return [root / "blobcore.h"] + [h for h in marked
-                                    if only is None or h.stem in [*only, "scratch"]
-                                    or not (root / f"{h.stem}.c").exists()]
+def api_headers(root: Path = HERE) -> list[Path]:
+    """blobcore.h, then each header marked "(read by cffi)" on its first line."""
+    return [root / "blobcore.h"] + [h for h in headers(root) if h.name != "blobcore.h"
+                                    and CFFI_MARK in h.read_text().split("\n", 1)[0]]
 
 
-def cdef_text(root: Path = HERE, only: list[str] | None = None) -> str:
+def cdef_text(root: Path = HERE) -> str:
     """The declarations cffi reads: the API headers without the lines of the preprocessor but integer #defines."""
     keep = re.compile(r"#define\s+\w+\s+-?\d+\s*(/\*.*\*/)?\s*$")
     lines = []
-    for path in api_headers(root, only):
+    for path in api_headers(root):
         for line in path.read_text().splitlines():
             if line.lstrip().startswith("#") and not keep.match(line.strip()):
                 continue
@@ -113,9 +111,8 @@ def _check_compiler() -> None:
                  "(Debian/Ubuntu: apt-get install python3-dev), then pip install again")
 
 
-def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None = None, relative: bool = False):
-    """A cffi FFI set up to build `module` from the core's C files (or from the stage files named in
-    `only`, with the files every stage needs: threads.c, scratch.c). `relative`: the paths relative to the
+def make_builder(module: str = MODULE, root: Path = HERE, relative: bool = False):
+    """A cffi FFI set up to build `module` from the core's C files. `relative`: the paths relative to the
     working directory, as setup.py's build wants them (pip runs it from the project root); cffi's own
     compile, which works in a folder of its own, wants them absolute."""
     from cffi import FFI
@@ -123,9 +120,9 @@ def make_builder(module: str = MODULE, root: Path = HERE, only: list[str] | None
     _check_compiler()
     flags, link = compiler_flags()
     builder = FFI()
-    builder.cdef(cdef_text(root, only))
-    files = sources(root) if only is None else [root / f"{name}.c" for name in ["threads", "scratch", *only]]
-    preamble = "".join(f'#include "{h.name}"\n' for h in api_headers(root, only))
+    builder.cdef(cdef_text(root))
+    files = sources(root)
+    preamble = "".join(f'#include "{h.name}"\n' for h in api_headers(root))
     def path(p: Path) -> str:
         return os.path.relpath(p) if relative else str(p)
     builder.set_source(module, preamble, sources=[path(f) for f in files], include_dirs=[path(root)],
@@ -147,25 +144,6 @@ def build_in_place() -> Path:
         shutil.copy2(built, staged)
         os.replace(staged, target)  # a new file: a process that has the old one loaded keeps it
     return target
-
-
-def stage_module(only: list[str]):
-    """(ffi, lib) of a module built from the named stage files alone, in a temporary folder: for working on
-    one stage while others are unfinished (the tests use the installed extension)."""
-    import importlib.util
-
-    name = "_bc_" + "_".join(only) + "_" + source_hash()[:8]
-    out = Path(tempfile.gettempdir()) / "blobcore-stages"
-    out.mkdir(exist_ok=True)
-    built = list(out.glob(f"{name}.*.so"))
-    if not built:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = Path(make_builder(name, only=only).compile(tmpdir=tmp, verbose=False))
-            built = [Path(shutil.copy2(path, out / path.name))]
-    spec = importlib.util.spec_from_file_location(name, built[0])
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.ffi, module.lib
 
 
 if __name__ == "__main__":
