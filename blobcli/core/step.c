@@ -26,7 +26,7 @@
 #include "step.h"
 #include "walls.h"
 
-enum { KOT, XPBD, GAS, SPRINGS }; /* area.METHODS */
+enum { KOT, XPBD, GAS, SPRINGS }; /* the area methods, in the order of scene/schema.py METHODS */
 
 /* The stage clock's slots (pipeline.STAGES) */
 enum {
@@ -34,7 +34,6 @@ enum {
     LAP_SELF_CONTACT, LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION,
     LAP_SLEEP
 };
-
 
 static double now(void) {
     struct timespec t;
