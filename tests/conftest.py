@@ -55,6 +55,10 @@ PILE_REST_CENTRE = 2e-3  # m/s: fastest blob centre of a settled pile with sleep
 PILE_REST_VERTEX = 20e-3  # m/s: ... and fastest vertex
 PILE_ASLEEP = 0.9  # share of a settled pile's blobs asleep with sleeping on (the default)
 COMPARE_REPORT = 1e-12  # m: a deviation `compare` reports vs the one planted in the file
+DRIVEN_MOMENTUM = 1e-9  # relative: momentum F T and angular momentum τ T (about the centre) that a free blob
+#                        driven for T gains, and a torque's momentum, over τ T / R (measured 1e-12: round-off)
+DRIVEN_SLOPE = 0.1  # m/s: the least speed a ring on a 10° slope climbs or rolls back at, under a torque 20% above
+#                     or below m g R sin θ (measured 0.54 and 0.66 m/s over seconds 2-6)
 GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob on a fixed floor over 3 s
 #                  (issue "Worlds that move"; measured 9.4e-14: round-off)
 

@@ -57,6 +57,8 @@ typedef struct bcModel {
     const int64_t *spring_pairs;     /* (S, 2) */
     const double *spring_rest;       /* (S,) m */
     const double *spring_compliance; /* (B,) m/N */
+    const double *driving;           /* (B, 3): driving force F_x, F_y (N) at the centre of mass, torque τ (N m,
+                                      * counter-clockwise): driving.h; all 0: not driven */
     bcStaticSet statics[BC_SOLVER_KINDS];
     bcWalls walls;
 } bcModel;

@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdbool.h>
 
+#include "driving.h"
 #include "integrate.h"
 #include "parallel.h"
 #include "ring.h"
@@ -207,9 +208,14 @@ int64_t bc_substeps_for(const bcContext *ctx, double g) {
     for (int64_t b = 0; b < m->blob_count; b++) {
         edge = bc_min(edge, rest_perimeter[b] / (double)(offsets[b + 1] - offsets[b]));
         if (ctx->s->awake[b]) {
-            double means[4];
+            double means[4], drive[6];
             double omega = rigid_motion(ctx->s->position, ctx->s->velocity, n, offsets[b], offsets[b + 1], means);
-            fastest = bc_max(fastest, hypot(means[2], means[3]) + fabs(omega) * rest_perimeter[b] / (2.0 * PI));
+            double radius = rest_perimeter[b] / (2.0 * PI);
+            double speed = hypot(means[2], means[3]) + fabs(omega) * radius;
+            /* a driven blob also gains up to (|F| / M + |τ| R / I) dt over the step, as g dt below */
+            if (bc_driving_of(m, ctx->s->position, b, drive))
+                speed += (hypot(drive[0], drive[1]) + fabs(drive[2]) * radius) * dt;
+            fastest = bc_max(fastest, speed);
         }
     }
     if (edge == INFINITY) return c->substeps; /* no blobs */
@@ -224,9 +230,10 @@ int64_t bc_substeps_for(const bcContext *ctx, double g) {
     return bc_imax(c->substeps, (int64_t)ceil(need));
 }
 
-/* x_prev <- x; v += g h; x moves by the rigid motion exactly and by the deformation to first order; clear this
- * substep's multipliers and contacts. predicted[b] = (v_c, ½ mean |v|², -g · c), the blob's velocity, kinetic and
- * potential energy per unit mass before the constraints (restitution).
+/* x_prev <- x; v += (g + f_i / m_i) h, f_i a driven blob's share of its force and torque (driving.h); x moves by
+ * the rigid motion exactly and by the deformation to first order; clear this substep's multipliers and contacts.
+ * predicted[b] = (v_c, ½ mean |v|², -g · c), the blob's velocity, kinetic and potential energy per unit mass
+ * before the constraints (restitution).
  *
  * x += h v would move a spinning vertex along its tangent, off its circle around c by |r| (√(1 + ω²h²) - 1); the
  * perimeter stage then pulls it back and the chord it travelled is short of ωh: spin decayed (35 % of 4 rad/s in
@@ -243,11 +250,18 @@ void bc_predict(const bcContext *ctx, double h) {
     BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
         if (!s->awake[b]) continue;
         int64_t o = offsets[b], e = offsets[b + 1];
+        double drive[6]; /* F / M, τ / I, the centre of mass and M (driving.h) */
+        bool driven = bc_driving_of(m, pos, b, drive);
         for (int64_t i = o; i < e; i++) {
             prev[i] = pos[i];
             prev[n + i] = pos[n + i];
-            vel[i] += gx * h;
-            vel[n + i] += gy * h;
+            if (driven) { /* v += (g + f_i / m_i) h, f_i / m_i = F / M + (τ / I) ẑ × r_i */
+                vel[i] += (gx + drive[0] - drive[2] * (pos[n + i] - drive[4])) * h;
+                vel[n + i] += (gy + drive[1] + drive[2] * (pos[i] - drive[3])) * h;
+            } else {
+                vel[i] += gx * h;
+                vel[n + i] += gy * h;
+            }
             lam[i] = 0.0; /* XPBD multipliers accumulate over one substep's iterations only */
             depth[i] = 0.0;
         }

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "collide_limits.h"
+#include "driving.h"
 #include "friction.h"
 #include "parallel.h"
 #include "periodic.h"
@@ -27,6 +28,17 @@ static const double MIN_REST_SPEED = 0.01;   /* m/s ... nor below this (without 
  * MIN_REST_SPEED), g = |g|, h the substep */
 double bc_rest_speed(double g, double h) { return bc_max(REST_SPEED_FACTOR * g * h, MIN_REST_SPEED); }
 
+/* Work W (per unit mass: of the blob, or of the pair's μ) a drive did on a contact's motion this substep, into its
+ * record: as if it had fallen by W more since its impact (P), and, once it has bounced, as energy it has now beyond
+ * its potential P_now (E <- max(E, P_now) + W). The max: a blob that bounced at e = 0 and then rose on its own
+ * recoil (the rule holds its speed, not its place) has E < P_now, and would stay held until the drive's work made
+ * up that deficit (a jump off a floor lost 4 of its 18 steps of push, and 45% of its height). So from there
+ * ½ u² <= W - (P_now' - P_now): what the drive did, less the climb. */
+static inline void add_work(double *record, double work, double potential_now) {
+    record[3] += work;
+    if (record[1] != NO_BOUNCE) record[1] = bc_max(record[1], potential_now) + work;
+}
+
 /* One substep of a contact's restitution rule along its normal, for record = (V, E, K, P) of the contact; returns
  * the change Δu of the normal speed u to apply.
  *
@@ -43,7 +55,9 @@ double bc_rest_speed(double g, double h) { return bc_max(REST_SPEED_FACTOR * g *
  * would add energy. So no bounce goes higher than the drop. The record outlives the contact: a vibrating blob that
  * has bounced touches again on its way up, and those touches, inelastic for the vertex, would turn vibration into
  * lift. A new impact starts when the bodies approach faster than rest_speed after a bounce (or faster than V before
- * it); slower approaches never bounce (resting). */
+ * it); slower approaches never bounce (resting). A driving force or torque (driving.h) that does work W on the
+ * contact's motion is energy that comes in too, as a fall is (add_work), so a driven blob may push off a contact it
+ * landed on (a jump) and leave it faster than it came. */
 static double bounce(double *record, double approach, double energy, double potential, double potential_now,
                      double u, double other, double e, double rest_speed) {
     if (approach > (record[1] != NO_BOUNCE ? rest_speed : record[0])) {
@@ -121,7 +135,11 @@ void bc_restitution(const bcContext *ctx, double rest_speed) {
             came += w2 - (wx * predicted[4 * b] + wy * predicted[4 * b + 1]);
             kinetic += w2 - (wx * ux + wy * uy) / count;
         }
-        double du = bounce(s->impact + 4 * b, approach, came, predicted[4 * b + 3], -(gx * cx + gy * cy) / count, u,
+        double drive[6]; /* the drive's work on the blob this substep, per unit mass (none: the same bits as before) */
+        double potential_now = -(gx * cx + gy * cy) / count;
+        if (bc_driving_work(m, pos, s->previous, b, drive))
+            add_work(s->impact + 4 * b, drive[0] / drive[5], potential_now);
+        double du = bounce(s->impact + 4 * b, approach, came, predicted[4 * b + 3], potential_now, u,
                            kinetic - 0.5 * u * u, e_max, rest_speed);
         if (du != 0.0) {
             for (int64_t i = o; i < e; i++) {
@@ -167,6 +185,34 @@ static void find_touching(const bcContext *ctx, uint8_t *pushed, uint8_t *touchi
         uint8_t both = awake[w->pairs[2 * k]] ? awake[w->pairs[2 * k + 1]] : 0; /* awake[a] and awake[b] */
         touching[k] = (touching[k] & both) != 0;
     }
+}
+
+/* Blob b's centre-of-mass displacement this substep, Σ m_i (x_i − x_prev,i) / M, into shift (2,) */
+static void centre_shift(const bcModel *m, const double *pos, const double *prev, int64_t b, double shift[2]) {
+    const int64_t n = m->vertex_count;
+    double M = 0.0, dx = 0.0, dy = 0.0;
+    for (int64_t i = m->offsets[b]; i < m->offsets[b + 1]; i++) {
+        double m_i = 1.0 / m->inv_mass[i];
+        M += m_i;
+        dx += m_i * (pos[i] - prev[i]);
+        dy += m_i * (pos[n + i] - prev[n + i]);
+    }
+    shift[0] = dx / M;
+    shift[1] = dy / M;
+}
+
+/* The work the drives of blobs a and b (driving.h) did on their relative motion this substep, per unit of their
+ * reduced mass μ: what each did, W_a + W_b, less what their forces did on the pair's centre of mass, which moved by
+ * Δx_cm = (m_a Δc_a + m_b Δc_b) / (m_a + m_b); 0 when neither is driven. */
+static double pair_drive_work(const bcContext *ctx, int64_t a, int64_t b, double ma, double mb, double mu) {
+    const double *pos = ctx->s->position, *prev = ctx->s->previous;
+    double da[6] = {0.0}, db[6] = {0.0}; /* W, Δc, F (driving.h: bc_driving_work) */
+    bool driven_a = bc_driving_work(ctx->m, pos, prev, a, da), driven_b = bc_driving_work(ctx->m, pos, prev, b, db);
+    if (!driven_a && !driven_b) return 0.0;
+    if (!driven_a) centre_shift(ctx->m, pos, prev, a, da + 1);
+    if (!driven_b) centre_shift(ctx->m, pos, prev, b, db + 1);
+    double cx = (ma * da[1] + mb * db[1]) / (ma + mb), cy = (ma * da[2] + mb * db[2]) / (ma + mb);
+    return (da[0] + db[0] - (da[3] + db[3]) * cx - (da[4] + db[4]) * cy) / mu;
 }
 
 /* virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre. */
@@ -240,6 +286,8 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
         double after = (ma * ka + mb * kb - 0.5 * (after_x * after_x + after_y * after_y) / (ma + mb)) / mu;
         double approach = (pa[0] - pb[0]) * nx + (pa[1] - pb[1]) * ny;
         double u = (vbx - vax) * nx + (vby - vay) * ny;
+        double work = pair_drive_work(ctx, a, b, ma, mb, mu);
+        if (work != 0.0) add_work(w->pair_impact + 4 * k, work, 0.0);
         double du = bounce(w->pair_impact + 4 * k, approach, before, 0.0, 0.0, u, after - 0.5 * u * u,
                            bc_mix_restitution(material[3 * a + 2], material[3 * b + 2]), rest_speed);
         if (du == 0.0) continue;

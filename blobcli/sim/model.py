@@ -105,6 +105,7 @@ class ModelArrays(NamedTuple):
     spring_pairs: np.ndarray
     spring_rest: np.ndarray
     spring_compliance: np.ndarray
+    driving: np.ndarray
     statics: tuple  # one per SOLVERS kind: its StaticSet's (geom, shape_offsets, material, index)
     walls: Walls
 
@@ -132,6 +133,8 @@ class Model:
     spring_pairs: np.ndarray  # (S, 2) int64, method springs: the internal springs' vertex pairs ...
     spring_rest: np.ndarray  # (S,) m, ... their rest lengths
     spring_compliance: np.ndarray  # (B,) m/N, ... and compliance, 1 / stiffness
+    driving: np.ndarray  # (B, 3): each blob's driving force F_x, F_y (N) through its centre of mass and torque τ
+    #                      (N m, counter-clockwise) about it (core/driving.h); 0: not driven
 
     @cached_property
     def arrays(self) -> ModelArrays:
@@ -141,7 +144,7 @@ class Model:
         return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.rest_perimeter,
                            self.target_area,
                            self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
-                           self.spring_pairs, self.spring_rest, self.spring_compliance,
+                           self.spring_pairs, self.spring_rest, self.spring_compliance, self.driving,
                            tuple(kinds.get(kind, none) for kind in SOLVERS), self.walls)
 
     @property
@@ -315,7 +318,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         area = signed_area(base)
         per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
                          (b.static_friction, b.friction, b.restitution), b.area_compliance, b.gas_pressure,
-                         b.spring_stiffness))
+                         b.spring_stiffness, (*b.force, b.torque)))
 
     counts = np.concatenate([p[0] for p in per_blob])
     offsets = np.zeros(len(counts) + 1, dtype=np.int64)
@@ -329,6 +332,7 @@ def build(scene: Scene) -> tuple[Model, State]:
     mass, rest_area, pressure, compliance = per(1), per(2), per(3), per(4)
     area_compliance, gas_pressure, spring_stiffness = per(6), per(7), per(8)
     material = np.concatenate([np.tile(np.array(p[5], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
+    driving = np.concatenate([np.tile(np.array(p[9], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
     blob_of = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
     inv_mass = (counts / mass)[blob_of]
     rest_length = np.hypot(*(pos[ring_next(offsets)] - pos).T)
@@ -343,7 +347,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                   statics=statics, walls=walls,
                   orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
-                  spring_compliance=1.0 / spring_stiffness)
+                  spring_compliance=1.0 / spring_stiffness, driving=driving)
     n, blobs = len(pos), len(counts)
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
                   impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),

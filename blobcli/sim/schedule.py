@@ -8,6 +8,10 @@ takes the same values as an uninterrupted one. The model stays as the scene buil
     mass m:        inv_mass of each vertex = n / m (n vertices)
     pressure p, scale s:  target_area = p × rest_area × s²; rest edge lengths and perimeter × s
     friction, static_friction, restitution: the blob's material (combined at each contact as before)
+    force [Fx, Fy], torque τ: the blob's row of `driving` (core/driving.h); the value at t = step × dt
+        acts through the whole step, so the impulse a schedule gives is the sum of its values × dt: for keyframes
+        at multiples of dt, the area under the keyframes' line less (last − first) dt / 2 (a pulse from 0 to 0:
+        exactly its area)
     scene.gravity: the step's settings (g, "up", the rest speed of restitution)
     scene.periodic: the periodic box's sides L; when they change, each blob moves with the box, its centre
         c remapped affinely, c <- c L_new / L_old (the whole blob shifted, not stretched; velocities kept:
@@ -31,6 +35,7 @@ from .model import Model, Params
 from .pipeline import StepSettings, settings
 
 MATERIAL_COLUMN = {"static_friction": 0, "friction": 1, "restitution": 2}  # of Model.material
+DRIVING_COLUMNS = {"force": [0, 1], "torque": [2]}  # of Model.driving
 
 
 class Schedules:
@@ -53,15 +58,15 @@ class Schedules:
                 self.box = (at[:, 0], at[:, 1], at[:, 2])
             elif s.key == "scene.shear":
                 self.shear = (at[:, 0], at[:, 1])
-            else:
+            else:  # values: (K,), or (K, 2) for a force
                 self.blob_items.append((s.blob_key, np.array(schedule_targets(s, names), np.int64), at[:, 0],
-                                        at[:, 1]))
+                                        at[:, 1] if s.blob_key != "force" else at[:, 1:]))
         a = model.arrays
         self.pressure = model.target_area / model.rest_area  # (B,): as the scene wrote it
         self.scale = np.ones(model.blob_count)
         self.arrays = a._replace(inv_mass=a.inv_mass.copy(), rest_length=a.rest_length.copy(),
                                  rest_perimeter=a.rest_perimeter.copy(), target_area=a.target_area.copy(),
-                                 material=a.material.copy())
+                                 material=a.material.copy(), driving=a.driving.copy())
 
     def __bool__(self) -> bool:
         return bool(self.blob_items) or any(x is not None for x in (self.gravity, self.box, self.shear))
@@ -73,6 +78,14 @@ class Schedules:
         m, a = self.model, self.arrays
         counts = np.diff(m.offsets)
         for key, blobs, times, values in self.blob_items:
+            if key in DRIVING_COLUMNS:
+                v = [np.interp(t, times, column) for column in values.reshape(len(times), -1).T]
+                if v != [np.interp((step - 1) * self.params.dt, times, column)
+                         for column in values.reshape(len(times), -1).T]:
+                    state.awake[blobs] = 1
+                    state.still[blobs] = 0.0
+                a.driving[np.ix_(blobs, DRIVING_COLUMNS[key])] = v
+                continue
             v = float(np.interp(t, times, values))
             if v != float(np.interp((step - 1) * self.params.dt, times, values)):
                 state.awake[blobs] = 1
