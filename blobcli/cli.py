@@ -34,6 +34,15 @@ def _workers(text):
     return v
 
 
+def _seeds(text):
+    """--seeds: 1 up to jam's MAX_SEEDS."""
+    from .tools.jam import MAX_SEEDS
+    v = _positive_int(text)
+    if v > MAX_SEEDS:
+        raise argparse.ArgumentTypeError(f"at most {MAX_SEEDS:,} (got {v})")
+    return v
+
+
 def _scheduler(text):
     """--scheduler: a Dask scheduler address, [protocol://]host:port."""
     import re
@@ -167,8 +176,10 @@ def parser() -> argparse.ArgumentParser:
     jam.add_argument("--pressure", type=_positive_float, default=DEFAULT_PRESSURE, metavar="P",
                      help="target pressure p × the blobs' mean perimeter compliance, dimensionless "
                           f"(default {DEFAULT_PRESSURE:g})")
-    jam.add_argument("--seeds", type=_positive_int, default=1, metavar="K",
-                     help="independent random starts, seeds [scene] seed .. + K - 1 (default 1)")
+    from .tools.jam import MAX_SEEDS
+    jam.add_argument("--seeds", type=_seeds, default=1, metavar="K",
+                     help=f"independent random starts, seeds [scene] seed .. + K - 1 (default 1, at most "
+                          f"{MAX_SEEDS:,})")
     jam.add_argument("-o", "--output", default="outputs/jam", metavar="DIR",
                      help="trajectories, summary.json and chart go to DIR/<scene name>/ (default outputs/jam)")
     jam.add_argument("--json", metavar="FILE", help="also write the figures here")
@@ -212,6 +223,21 @@ def _output_problems(*pairs) -> list[str]:
     return out
 
 
+def _clobber_problems(outputs, inputs, option: str | None = "-o") -> list[str]:
+    """One line for each of `outputs` that is a file the command reads, `inputs` ((path, what it is) pairs):
+    the one rule every command applies to every output it writes, before any work (io/outputs.py). `option`:
+    the one that chooses those outputs (None: none does)."""
+    from .io.outputs import clobber_problems
+    fix = f"choose another {option}" if option else "move it away"
+    return [f"{path}: {why}; {fix}" for path, why in clobber_problems(outputs, inputs)]
+
+
+def _trajectory_files(path) -> list:
+    """A trajectory and the lock a run holds beside it (written, then removed: outputs.OutputLock)."""
+    from pathlib import Path
+    return [] if path is None else [Path(path), Path(f"{path}.lock")]
+
+
 def cmd_run(args) -> int:
     from pathlib import Path
 
@@ -241,6 +267,11 @@ def cmd_run(args) -> int:
     if rerun == "":
         rerun = str(output.with_suffix(".rrd"))
     problems = _output_problems((rerun or None, "file"))
+    scene_file, resumed = (args.scene, "the scene run"), (args.resume, "the trajectory resumed")
+    problems += _clobber_problems([output], [scene_file])  # (in place: the resumed file is the output)
+    problems += _clobber_problems(_trajectory_files(output)[1:], [scene_file, resumed])
+    problems += _clobber_problems([rerun or None], [scene_file, resumed, (output, "the trajectory recorded")],
+                                  "--rerun")
     if problems:
         return _fail(problems)
     for line in spawn_warnings(scene):
@@ -287,7 +318,8 @@ def cmd_check(args) -> int:
 def cmd_replay(args) -> int:
     from pathlib import Path
     out = args.output or str(Path(args.trajectory).with_suffix(".rrd"))
-    problems = _output_problems((out, "file"))
+    problems = _output_problems((out, "file")) or _clobber_problems([out], [(args.trajectory,
+                                                                            "the trajectory replayed")])
     if problems:
         return _fail(problems)
     from .io.recording import replay
@@ -308,7 +340,7 @@ def cmd_view(args) -> int:
         return _fail([f"{path}: is not a file (give a .rrd recording or a .h5 trajectory)"])
     if path.suffix == ".h5":
         rrd = path.with_suffix(".rrd")
-        problems = _output_problems((rrd, "file"))
+        problems = _output_problems((rrd, "file")) or _clobber_problems([rrd], [(path, "the trajectory viewed")], None)
         if problems:
             return _fail(problems)
         from .io.recording import replay
@@ -333,7 +365,8 @@ def cmd_render(args) -> int:
     out = Path(args.output) if args.output else Path(args.trajectory).with_suffix(".png")
     if out.suffix.lower() != ".png":
         out = out.with_name(out.name + ".png")
-    problems = _output_problems((out, "file"))
+    problems = _output_problems((out, "file")) or _clobber_problems([out], [(args.trajectory,
+                                                                            "the trajectory drawn")])
     if problems:
         return _fail(problems)
     from .tools.render import render
@@ -343,7 +376,9 @@ def cmd_render(args) -> int:
 
 
 def cmd_stress(args) -> int:
+    from .tools.stress import inputs, output_files
     problems = _output_problems((args.output, "dir"))
+    problems = problems or _clobber_problems(output_files(args.output, args.methods, args.quick), inputs())
     if problems:
         return _fail(problems)
     from .tools.stress import run_stress
@@ -362,7 +397,10 @@ def cmd_study(args) -> int:
         scene = load_scene(args.scene)
     except SceneError as e:
         return _fail(e.problems)
+    from .tools.study import output_files
     problems = _output_problems((args.output, "dir"))
+    problems = problems or _clobber_problems(output_files(args.output, scene, args.methods),
+                                             [(args.scene, "the scene studied")])
     if problems:
         return _fail(problems)
     from .tools.study import chart, cheapest, format_points, run_study, write_csv
@@ -381,7 +419,6 @@ def cmd_study(args) -> int:
 
 
 def cmd_export(args) -> int:
-    import os
     from pathlib import Path
 
     from .io.export import sidecars
@@ -390,10 +427,9 @@ def cmd_export(args) -> int:
     if args.output == "":
         return _fail(["-o: is empty"])
     problems = _output_problems(*((p, "file") for p in sidecars(out, args.format)))
+    problems = problems or _clobber_problems(sidecars(out, args.format), [(source, "the trajectory exported")])
     for p in [] if problems else sidecars(out, args.format):
-        if p.exists() and source.exists() and os.path.samefile(p, source):  # by identity: hard links too
-            problems.append(f"{p}: is {source}, the trajectory exported; choose another -o")
-        elif p != out and p.exists() and not _export_wrote(p, out):
+        if p != out and p.exists() and not _export_wrote(p, out):
             problems.append(f"{p}: exists and is not the heavy data of an earlier export to {out} "
                             f"(XDMF writes its data there); move it away or choose another -o")
     if problems:
@@ -432,7 +468,9 @@ def cmd_sweep(args) -> int:
     except SceneError as e:
         return _fail(e.problems)
     out = Path(args.output) / sweep.name
-    problems = _output_problems((args.output, "dir"), (out, "dir"))
+    problems = _output_problems((args.output, "dir")) or _output_problems((out, "dir"))
+    problems = problems or _clobber_problems(sw.output_files(out, sweep), [(sweep.source, "the sweep file"),
+                                                                          (sweep.base, "the sweep's scene")])
     if problems:
         return _fail(problems)
     live = not args.quiet and sys.stderr.isatty()
@@ -450,17 +488,21 @@ def cmd_sweep(args) -> int:
 def cmd_jam(args) -> int:
     from pathlib import Path
 
-    from .scene.schema import SceneError, load_scene
+    from .scene.schema import SceneError, load_scene, scene_problem
     from .tools import jam as jm
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
         return _fail(e.problems)
-    problem = jm.jam_problem(scene)
+    problem = jm.jam_problem(scene, args.seeds)
     if problem:
-        return _fail([f"{args.scene}: {problem}"])
+        return _fail([scene_problem(scene, *problem)])
     out = Path(args.output) / scene.name
-    problems = _output_problems((args.output, "dir"), (out, "dir"), (args.json, "file"))
+    problems = _output_problems((args.output, "dir")) or _output_problems((out, "dir"), (args.json, "file"))
+    files = jm.output_files(out, scene, args.seeds)
+    problems = problems or _output_problems(*((p, "file") for p in (*files[:2], files[-1])))  # the last seed's: longest
+    read = [(args.scene, "the scene jammed")]
+    problems = problems or _clobber_problems(files, read) + _clobber_problems([args.json], read, "--json")
     if problems:
         return _fail(problems)
     live = not args.quiet and sys.stderr.isatty()
@@ -477,7 +519,8 @@ def cmd_jam(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    problems = _output_problems((args.json, "file"))
+    from .tools.bench import inputs
+    problems = _output_problems((args.json, "file")) or _clobber_problems([args.json], inputs(), "--json")
     if problems:
         return _fail(problems)
     from .tools.bench import main as bench_main

@@ -110,6 +110,23 @@ def default_pivot(s) -> tuple[float, float]:
     return tuple(((p + q) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum()))
 
 
+def surface_reach(s, world: float) -> float:
+    """The farthest point of a collider's surface from its pivot (m): where it moves fastest when it turns, at
+    |ω| × this. A plane's surface has no end: its farthest point a blob can reach, where it leaves the world
+    [-world, world]² (positions beyond stop a run)."""
+    pivot = np.array(default_pivot(s))
+    if s.kind == "circle":
+        return float(np.hypot(*(np.array(s.center) - pivot)) + s.radius)
+    if s.kind == "plane":  # its line p + t u, cut where it leaves the world's square
+        p, n = np.array(s.point), _unit_normal(s)
+        u = np.array([-n[1], n[0]])
+        ends = [t for i in range(2) if u[i] != 0.0 for t in ((world - p[i]) / u[i], (-world - p[i]) / u[i])]
+        inside = [p + t * u for t in ends if np.all(np.abs(p + t * u) <= world * (1.0 + 1e-12))]
+        return float(max(np.hypot(*(q - pivot)) for q in inside))
+    corners = np.array([s.a, s.b]) if s.kind == "segment" else polygon_outline(s)
+    return float(np.hypot(*(corners - pivot).T).max())
+
+
 COLLIDERS = {
     "plane": ColliderKind(("point", "normal"), "plane", _plane_rows, _plane_outline, _plane_depth),
     "segment": ColliderKind(("a", "b"), "segment", _segment_rows, lambda s, extent: np.array([s.a, s.b]),

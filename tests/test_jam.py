@@ -66,6 +66,61 @@ def test_a_scene_jam_cannot_compress_is_bad_input(tmp_path, text, says):
     assert not (tmp_path / "out").exists()  # nothing written
 
 
+def test_a_scene_jam_refuses_is_named_by_file_line_and_key(tmp_path):
+    """jam's own refusals read as `check`'s: file:line: key.path: what is wrong."""
+    scene = tmp_path / "bad.toml"
+    scene.write_text(SMALL.format(seed=0, mu=0.0).replace("count = 16\nfriction = 0.0\n[[blob]]",
+                                                          "count = 16\nfriction = 0.0\n[[blob]]\ncompliance = 0.0"))
+    r = blobsim("jam", scene, "-o", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr.startswith(f"{scene}:13: blob[1].compliance: jam measures pressure"), r.stderr
+    scene.write_text(SMALL.format(seed=2 ** 63 - 2, mu=0.0))
+    r = blobsim("jam", scene, "--seeds", 3, "-o", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr.startswith(f"{scene}:5: scene.seed: the seeds run to"), r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_bad_seed_is_the_only_error_a_jam_scene_gets(tmp_path):
+    """seed = -1 in a periodic scene: one error, the seed's, not a false one about its copies' region."""
+    scene = tmp_path / "bad.toml"
+    scene.write_text(SMALL.format(seed=-1, mu=0.0))
+    r = blobsim("jam", scene, "-o", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr == f"{scene}:5: scene.seed: must be >= 0 (got -1)\n", r.stderr
+
+
+def test_seeds_are_bounded_before_any_work(tmp_path):
+    from blobcli.tools.jam import MAX_SEEDS
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.format(seed=0, mu=0.0))
+    r = blobsim("jam", scene, "--seeds", 1_000_000_000, "-o", tmp_path / "out")
+    assert r.returncode == 2 and f"--seeds: at most {MAX_SEEDS:,}" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_output_name_too_long_is_bad_input_as_for_run(tmp_path):
+    scene = tmp_path / "small.toml"
+    scene.write_text(SMALL.format(seed=0, mu=0.0))
+    for out in (tmp_path / ("x" * 300), tmp_path / ("x" * 300) / "y"):
+        r = blobsim("jam", scene, "-o", out)
+        assert r.returncode == 2 and "too long" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
+
+
+def test_the_chart_is_written_through_the_safe_path_never_through_a_link(tmp_path):
+    """A symlink planted at DIR/<name>/chart.png is replaced by the chart, its target untouched (as summary.json
+    and the trajectories already were)."""
+    scene = tmp_path / "two.toml"  # two blobs: jam fails fast (exit 1), and still writes its chart
+    scene.write_text("[scene]\ngravity = [0.0, 0.0]\nperiodic = [1.0, 1.0]\n[[blob]]\nradius = 0.1\nvertices = 16\n"
+                     "count = 2\n")
+    out = tmp_path / "out" / "two"
+    out.mkdir(parents=True)
+    precious = tmp_path / "precious.txt"
+    precious.write_text("precious")
+    (out / "chart.png").symlink_to(precious)
+    r = blobsim("jam", scene, "-o", tmp_path / "out", "--workers", 0, "-q")
+    assert r.returncode in (0, 1), r.stderr
+    assert precious.read_text() == "precious"
+    assert not (out / "chart.png").is_symlink() and (out / "chart.png").read_bytes()[:4] == b"\x89PNG"
+
+
 def test_the_shipped_jamming_scenes_are_valid_and_differ_only_in_friction():
     scenes = sorted(JAMMING.glob("*.toml"))
     assert [s.stem for s in scenes] == ["bidisperse", "frictional"]

@@ -112,6 +112,77 @@ def test_a_box_too_small_for_its_blobs_is_bad_input():
                                 "(1.5 m) (got [1.0, 3.0])"]
 
 
+@pytest.mark.parametrize("damage, says", [
+    ("missing", "particles/blobs/box/edges is missing"),
+    ("nan", "particles/blobs/box/edges holds a value that is not a finite number"),
+    ("zero", "particles/blobs/box/edges holds a side of the box that is not > 0"),
+    ("negative", "particles/blobs/box/edges holds a side of the box that is not > 0"),
+    ("scheduled nan", "particles/blobs/box/edges holds a value that is not a finite number"),
+    ("scheduled zero", "particles/blobs/box/edges holds a side of the box that is not > 0"),
+])
+def test_every_reader_refuses_a_box_whose_edges_are_missing_not_finite_or_not_positive(tmp_path, damage, says):
+    """A format-8/9 file with a damaged periodic box is bad input, one line and exit 2, for render and replay as
+    for export and compare (they said "internal error")."""
+    text = PAIR.format(box="periodic = [3.0, 2.5]", xa=0.9, xb=-0.5)
+    if damage.startswith("scheduled"):  # the box a time series
+        text += '[[schedule]]\nkey = "scene.periodic"\nat = [[0.0, 3.0, 2.5], [1.0, 3.2, 2.6]]\n'
+    (tmp_path / "s.toml").write_text(text)
+    traj = tmp_path / "t.h5"
+    assert blobsim("run", tmp_path / "s.toml", "-o", traj, "--steps", "6", "-q").returncode == 0
+    with h5py.File(traj, "r+") as f:
+        edges = f["particles/blobs/box/edges"]
+        values = edges["value"] if isinstance(edges, h5py.Group) else edges
+        if damage == "missing":
+            del f["particles/blobs/box/edges"]
+        else:
+            e = values[...]
+            e[..., 0] = {"nan": np.nan, "zero": 0.0, "negative": -3.0}[damage.split()[-1]]
+            values[...] = e
+    for args in (("render", traj, "-o", tmp_path / "t.png"), ("replay", traj, "-o", tmp_path / "t.rrd"),
+                 ("export", traj, "--format", "xyz", "-o", tmp_path / "t.xyz"), ("compare", traj, traj)):
+        r = blobsim(*args)
+        assert r.returncode == 2 and says in r.stderr and len(r.stderr.splitlines()) == 1, (args, r.stderr)
+    assert not any((tmp_path / f"t.{ext}").exists() for ext in ("png", "rrd", "xyz"))
+
+
+def test_shear_keyframes_are_bounded():
+    """A shear strain of ±1e20 or 1e300 crashed the step; |γ| is at most MAX_SHEAR (1,000), stated in the key's
+    doc, and that much runs."""
+    from blobcli.scene.schema import MAX_SHEAR
+    text = PAIR.format(box="periodic = [4.0, 3.0]", xa=0.9, xb=-0.9) + \
+        '[[schedule]]\nkey = "scene.shear"\nat = [[0.0, 0.0], [1.0, {gamma}]]\n'
+    for gamma in (1e20, -1e20, 1e300, 1001.0):
+        with pytest.raises(SceneError) as e:
+            parse_scene(text.format(gamma=gamma), "s.toml")
+        assert e.value.problems == [f"s.toml:16: schedule[0].at[1]: shear strain γ must be within ±1,000 (the "
+                                    f"images' shift γ L_y stays a number the step can wrap) (got {gamma!r})"]
+    model, state = run(text.format(gamma=MAX_SHEAR), 10)  # γ = 167 at the tenth step
+    assert np.isfinite(state.pos).all()
+
+
+def test_a_box_of_more_broad_phase_cells_than_the_bound_is_refused():
+    """periodic = [1e4, 1e4] with two blobs passed check and then took gigabytes; the box is now at most
+    MAX_BOX_CELLS cells of the broad phase's grid (2.5 × the largest radius wide), as its key's doc says, in the
+    scene, in a periodic schedule's keyframes and with a scale schedule's smallest blobs."""
+    from blobcli.scene.schema import MAX_BOX_CELLS
+    two = PAIR.format(box="periodic = [{side}, {side}]", xa=0.9, xb=-0.9)
+    with pytest.raises(SceneError) as e:
+        parse_scene(two.format(side=1e4), "s.toml")
+    assert len(e.value.problems) == 1 and e.value.problems[0].startswith("s.toml:3: scene.periodic: the box is ")
+    assert f"at most {MAX_BOX_CELLS:,} cells" in e.value.problems[0]
+    parse_scene(two.format(side=1000.0), "s.toml")  # 1,000 × 1,000 cells of 1 m
+    grown = two.format(side=1000.0) + '[[schedule]]\nkey = "scene.periodic"\nat = [[0.0, 1000.0, 1000.0], ' \
+                                      '[1.0, 5000.0, 5000.0]]\n'
+    with pytest.raises(SceneError) as e:
+        parse_scene(grown, "s.toml")
+    assert e.value.problems[0].startswith("s.toml:16: schedule[0].at[1]: the box is ")
+    shrunk = two.format(side=1000.0).replace("radius = 0.4", 'name = "a"\nradius = 0.4').replace(
+        "radius = 0.3", 'name = "b"\nradius = 0.3') + '[[schedule]]\nkey = "blob.*.scale"\nat = [[0.0, 1.0], [1.0, 0.1]]\n'
+    with pytest.raises(SceneError) as e:
+        parse_scene(shrunk, "s.toml")
+    assert e.value.problems[0].startswith("s.toml:3: scene.periodic: the box is ")
+
+
 def test_random_copies_fill_the_periodic_box_across_its_edges_without_overlap():
     sc = parse_scene("[scene]\nperiodic = [2.0, 2.0]\nseed = 4\n[[blob]]\nradius = 0.15\nvertices = 12\ncount = 30\n")
     model, state = build(sc)

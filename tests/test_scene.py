@@ -158,3 +158,29 @@ def test_one_friction_given_is_also_the_static_friction():
     assert (neither.blobs[0].friction, neither.blobs[0].static_friction) == (0.5, 0.6)
     with pytest.raises(SceneError, match=r"static_friction: must be >= friction \(0.5\) \(got 0.4\)"):
         parse_scene("[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\nstatic_friction = 0.4\n", "<t>")
+
+
+@pytest.mark.parametrize("text, expected", [
+    (GOOD_BLOB + "mass = 5e-324\n", "s.toml:4: blob[0].mass: must be >= 1e-06 kg (got 5e-324)"),
+    (GOOD_BLOB.replace("[[blob]]", '[[blob]]\nname = "a"') + '[[schedule]]\nkey = "blob.a.mass"\nat = [[0.0, 1.0], [1.0, 1e-9]]\n',
+     "s.toml:7: schedule[0].at[1]: mass must be >= 1e-06 kg (got 1e-09)"),
+    (GOOD_BLOB.replace("[[blob]]", '[[blob]]\nname = "a"') + '[[schedule]]\nkey = "blob.a.scale"\nat = [[0.0, 1.0], [1.0, 1e-9]]\n',
+     "s.toml:7: schedule[0].at[1]: scales blob[0] (radius 0.5 m) to 5e-10 m; its radius must stay from 1e-06 to "
+     "1e+06 m (got 1e-09)"),
+    (GOOD_BLOB.replace("[[blob]]", '[[blob]]\nname = "a"') + '[[schedule]]\nkey = "blob.a.scale"\nat = [[0.0, 1e300]]\n',
+     "s.toml:7: schedule[0].at[0]: scales blob[0] (radius 0.5 m) to 5e+299 m; its radius must stay from 1e-06 to "
+     "1e+06 m (got 1e+300)"),
+])
+def test_masses_and_scaled_sizes_are_bounded(text, expected):
+    """A blob's mass (written or scheduled) at least MIN_MASS, and a scale schedule keeps its radius from MIN_LENGTH
+    to MAX_COORDINATE: as the keys' docs say."""
+    assert problems(text) == [expected]
+    parse_scene(GOOD_BLOB + "mass = 1e-6\n", "s.toml")
+
+
+def test_a_bad_scene_table_adds_no_false_error_about_a_periodic_boxs_copies():
+    """A [scene] table with one bad key (seed = -1) still has its periodic box: its blobs with count need no
+    region, and its shear schedule is in a box; only the real error is reported."""
+    text = ("[scene]\nperiodic = [2.0, 2.0]\nseed = -1\n[[blob]]\nradius = 0.1\ncount = 3\n"
+            '[[schedule]]\nkey = "scene.shear"\nat = [[0.0, 0.1]]\n')
+    assert problems(text) == ["s.toml:3: scene.seed: must be >= 0 (got -1)"]

@@ -331,6 +331,89 @@ def test_bad_schedules_are_clear_errors(bad, message):
         scene(f'[[blob]]\nname = "cell"\ncenter = [0.0, 1.0]\nradius = 0.5\n[[schedule]]\n{bad}\n')
 
 
+TURNING_BOX = """[[blob]]
+center = [0.0, 0.0]
+radius = 0.5
+[[static]]
+kind = "box"
+center = [3.0, 0.0]
+size = [1.0, 1.0]
+{motion}
+"""
+
+
+@pytest.mark.parametrize("motion, says", [
+    ("angular_velocity = 1.0\npivot = [1e6, 1e6]", r"s.toml:8: static\[0\].angular_velocity: moves its surface at "
+     r"up to 1.414e\+06 m/s"),  # |ω| R: 1 rad/s × 1.4e6 m, its corners from the pivot
+    ("velocity = [600.0, 0.0]\nangular_velocity = 600.0", r"s.toml:9: static\[0\].angular_velocity: moves its "
+     r"surface at up to 1024 m/s"),  # |v| + |ω| R = 600 + 600 × 0.707 (its corners from its centre)
+    ("path = [[0.0, 0.0, 0.0, 0.0], [1e-3, 100.0, 0.0, 0.0]]", r"s.toml:8: static\[0\].path\[1\]: moves its surface at "
+     r"up to 1e\+05 m/s from keyframe 0 to 1"),
+    ("path = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.001, 0.0, 0.0, 90.0]]", r"static\[0\].path\[2\]: "
+     r"moves its surface at up to 1111 m/s from keyframe 1 to 2"),  # π/2 rad in 1 ms × 0.707 m
+])
+def test_a_colliders_surface_speed_is_bounded_whichever_way_it_moves(motion, says):
+    """velocity and surface_velocity were bounded by 1,000 m/s; a turning collider's surface, |v| + |ω| R (R its
+    farthest point from its pivot), and a path's between keyframes are now too."""
+    with pytest.raises(SceneError, match=says) as e:
+        parse_scene(TURNING_BOX.format(motion=motion), "s.toml")
+    assert len(e.value.problems) == 1
+    parse_scene(TURNING_BOX.format(motion="angular_velocity = 100.0"), "s.toml")  # 100 × 0.707 m: 71 m/s
+    parse_scene(TURNING_BOX.format(motion="path = [[0.0, 0.0, 0.0, 0.0], [1.0, 900.0, 0.0, 0.0]]"), "s.toml")
+
+
+@pytest.mark.parametrize("motion, says", [
+    ("load = 1.0\nmass = 5e-324", r"s.toml:9: static\[0\].mass: must be >= 1e-06 kg \(got 5e-324\)"),
+    ("load = 1e300\nmass = 1e-300", r"s.toml:9: static\[0\].mass: must be >= 1e-06 kg"),
+    ("load = 1e300\nmass = 1.0", r"s.toml:8: static\[0\].load: load / mass is 1e\+300 m/s²; at most 1,000,000 m/s²"),
+    ("load = 2.0\nmass = 1e-6", r"s.toml:8: static\[0\].load: load / mass is 2e\+06 m/s²"),
+])
+def test_a_loaded_walls_mass_and_load_per_mass_are_bounded(motion, says):
+    """A wall of mass 5e-324, or a load of 1e300 on 1e-300 kg, turned NaN: its mass is at least MIN_MASS and its
+    load at most MAX_LOAD_ACCELERATION × its mass, as the keys' docs say."""
+    with pytest.raises(SceneError, match=says) as e:
+        parse_scene(TURNING_BOX.format(motion=motion), "s.toml")
+    assert len(e.value.problems) == 1
+    parse_scene(TURNING_BOX.format(motion="load = 1.0\nmass = 1e-6"), "s.toml")
+
+
+@pytest.mark.parametrize("dataset, row, column", [("static_pose", 0, 0), ("static_pose", 0, 4),
+                                                  ("position", 3, 1), ("velocity", 0, 0)])
+def test_resume_refuses_a_restart_state_that_is_not_finite(tmp_path, dataset, row, column):
+    """--resume checked the restart state's shapes only: a NaN in /restart/static_pose (a collider's pose) or in
+    the blobs' state ran on (exit 1, a runaway) or worse. It is bad input: one line, exit 2, nothing written."""
+    first = tmp_path / "first.h5"
+    assert blobsim("run", SCENES / "press.toml", "-o", first, "-q", "--steps", "20").returncode == 0
+    with h5py.File(first, "r+") as f:
+        values = f[f"restart/{dataset}"][...]
+        values[row, column] = np.nan
+        f[f"restart/{dataset}"][...] = values
+    r = blobsim("run", SCENES / "press.toml", "-o", tmp_path / "resumed.h5", "-q", "--steps", "40", "--resume", first)
+    assert r.returncode == 2 and len(r.stderr.splitlines()) == 1, r.stderr
+    assert f"restart/{dataset} holds a value that is not a finite number (row {row}:" in r.stderr
+    assert not (tmp_path / "resumed.h5").exists()
+
+
+def test_render_and_replay_refuse_a_collider_record_with_too_few_rows(tmp_path):
+    """A format-7+ file whose /observables/statics series has fewer rows than frames, or fewer colliders than its
+    scene, said "internal error" in render and replay; now one line and exit 2, as export and compare."""
+    good = tmp_path / "good.h5"
+    assert blobsim("run", SCENES / "press.toml", "-o", good, "-q", "--steps", "10").returncode == 0
+    for damage, says in (("frames", "observables/statics/position/value has shape (3, 2, 2), expected (11, '*', 2)"),
+                         ("colliders", "observables/statics records 1 colliders, its scene has 2")):
+        bad = tmp_path / f"{damage}.h5"
+        bad.write_bytes(good.read_bytes())
+        with h5py.File(bad, "r+") as f:
+            for name in ("position", "angle", "force", "torque"):
+                group = f[f"observables/statics/{name}"]
+                value = group["value"][...]
+                del group["value"]
+                group.create_dataset("value", data=value[:3] if damage == "frames" else value[:, :1])
+        for args in (("render", bad, "-o", tmp_path / "t.png"), ("replay", bad, "-o", tmp_path / "t.rrd")):
+            r = blobsim(*args)
+            assert r.returncode == 2 and says in r.stderr and len(r.stderr.splitlines()) == 1, (args, r.stderr)
+
+
 def test_the_walls_are_recorded_and_a_resumed_run_is_bit_identical_mid_motion(tmp_path):
     whole, first, resumed = tmp_path / "whole.h5", tmp_path / "first.h5", tmp_path / "resumed.h5"
     press = SCENES / "press.toml"
@@ -478,3 +561,49 @@ def test_a_vertex_moved_after_the_statics_is_never_left_behind_a_moving_segment(
     for n in range(8):
         advance(state, model, params if n < 2 else replace(params, substeps=16), 1)
         assert state.pos[:, 0].min() - (-3.0 + 100.0 * (n + 1) / 60) > -STATIC_PENETRATION
+
+
+PRESSED_BLOB = """[scene]
+duration = 1.0
+[[blob]]
+center = [0.0, 0.3]
+radius = 0.25
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+[[static]]
+kind = "box"
+center = [0.0, 0.7]
+size = [1.0, 0.2]
+load = 10.0
+"""
+
+
+@pytest.mark.parametrize("column", [3, 4])  # s, V (dx, dy are set from s every substep)
+def test_a_wall_whose_pose_turns_non_finite_stops_the_step_as_a_runaway(column):
+    """A loaded wall's state that turns NaN (a load far beyond its mass) must stop the run like a runaway vertex
+    (exit 1, `complete` false), not finish with a wall nowhere and exit 0."""
+    from blobcli.sim.measure import first_runaway_wall
+    s = scene(PRESSED_BLOB)
+    model, state = build(s)
+    params = build_params(s)
+    assert advance(state, model, params, 3) == 3
+    state.static_pose[1, column] = np.nan
+    assert advance(state, model, params, 5) == 0  # stopped in the first step, which left it non-finite
+    assert first_runaway_wall(state.static_pose) == 1
+
+
+def test_a_run_whose_wall_turns_non_finite_exits_1_with_a_readable_file(tmp_path):
+    text = PRESSED_BLOB.replace("load = 10.0", "load = 1e300\nmass = 1e-300")
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    done = blobsim("run", path, "-o", tmp_path / "o.h5")
+    code, err = done.returncode, done.stderr
+    if code == 2:  # refused by check (a load-to-mass bound): also never a wall on the far side
+        assert "static[1]" in err and "Traceback" not in err
+        return
+    assert code == 1, err
+    assert "static[1]'s pose" in err and "non-finite" in err
+    with h5py.File(tmp_path / "o.h5") as f:
+        assert not f.attrs["complete"]

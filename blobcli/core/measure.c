@@ -6,6 +6,7 @@
 
 #include "measure.h"
 #include "ring.h"
+#include "walls.h"
 
 int64_t bc_first_runaway_in(const double *position, int64_t n, double limit) {
     bool bad = false;
@@ -22,6 +23,16 @@ int64_t bc_first_runaway_in(const double *position, int64_t n, double limit) {
 
 int64_t bc_first_runaway(const bcContext *ctx, double limit) {
     return bc_first_runaway_in(ctx->s->position, ctx->m->vertex_count, limit);
+}
+
+int64_t bc_first_runaway_wall(const double *pose, int64_t walls, double limit) {
+    for (int64_t k = 0; k < walls; k++) {
+        const double *row = pose + BC_WALL_POSE_COLUMNS * k;
+        bool bad = !(fabs(row[0]) <= limit) || !(fabs(row[1]) <= limit) || !(fabs(row[3]) <= limit);
+        for (int64_t c = 0; c < BC_WALL_POSE_COLUMNS; c++) bad |= !isfinite(row[c]);
+        if (bad) return k;
+    }
+    return -1;
 }
 
 /* area = ½ Σ (x_i y_{i+1} − x_{i+1} y_i) in ring order, kinetic = ½ Σ m_i |v_i|² */

@@ -12,6 +12,10 @@ int64_t bc_first_runaway(const bcContext *ctx, double limit);
 /* The same over positions (2, n) */
 int64_t bc_first_runaway_in(const double *position, int64_t n, double limit);
 
+/* Index of the first collider whose pose row (pose: (walls, BC_WALL_POSE_COLUMNS)) holds a non-finite value or a
+ * displacement beyond `limit` (m), or -1 */
+int64_t bc_first_runaway_wall(const double *pose, int64_t walls, double limit);
+
 /* Each blob's signed area (m²) and kinetic energy (J) into area (blob_count,) and kinetic (blob_count,), from
  * positions and velocities (2, n), inverse masses (n,) and offsets (blob_count + 1,) */
 void bc_blob_measures(const double *position, const double *velocity, int64_t n, const double *inv_mass,

@@ -226,6 +226,13 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
             stop = (bcStop){n, BC_RUNAWAY_VERTEX, bad};
             goto done;
         }
+        if (c->moving) {
+            bad = bc_first_runaway_wall(s->static_pose, m->walls.count, runaway);
+            if (bad >= 0) {
+                stop = (bcStop){n, BC_RUNAWAY_WALL, bad};
+                goto done;
+            }
+        }
     }
 done:
     bc_scratch_free(own);

@@ -9,13 +9,14 @@
 #define BC_RUNAWAY_VERTEX 1  /* the step left vertex `detail` non-finite or beyond the runaway limit */
 #define BC_TOO_MANY_PAIRS 2  /* `detail` blob pairs overlap: more than the scratch holds (the state is mid-step) */
 #define BC_NO_MEMORY 3       /* the scratch could not be allocated: nothing was done */
+#define BC_RUNAWAY_WALL 4    /* the step left collider `detail`'s pose non-finite or beyond the runaway limit */
 
 /* The stage clock's slots, in pipeline.STAGES's order */
 #define BC_STAGE_COUNT 15
 
 typedef struct bcStop {
     int64_t steps;   /* steps done */
-    int64_t why;     /* BC_DONE, BC_RUNAWAY_VERTEX, BC_TOO_MANY_PAIRS or BC_NO_MEMORY */
+    int64_t why;     /* BC_DONE, BC_RUNAWAY_VERTEX, BC_TOO_MANY_PAIRS, BC_NO_MEMORY or BC_RUNAWAY_WALL */
     int64_t detail;
 } bcStop;
 

@@ -33,20 +33,12 @@ def sidecars(out, fmt: str) -> list[Path]:
 
 def export(h5_path, out, fmt: str) -> int:
     """Write `out` (and its sidecars) in `fmt`; returns the number of frames. Everything is
-    written in a hidden directory beside `out` and moved into place when whole."""
-    import os
-    import shutil
-    import tempfile
+    written in a hidden directory beside `out` and moved into place when whole (outputs.replaced_together)."""
+    from .outputs import replaced_together
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        frames = _export(h5_path, work / out.name, fmt)
-        for final in sidecars(out, fmt):
-            os.replace(work / final.name, final)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    return frames
+    with replaced_together(sidecars(out, fmt)) as work:
+        return _export(h5_path, work / out.name, fmt)
 
 
 def _export(h5_path, out: Path, fmt: str) -> int:

@@ -520,6 +520,10 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
             problems.append(f"{p} attribute {key} is missing")
     if "dt" in f[p].attrs and not (np.isfinite(f[p].attrs["dt"]) and f[p].attrs["dt"] > 0):
         problems.append(f"{p} attribute dt is not a positive number")
+    if version >= 8 and (IMAGE in f or EDGES in f):  # a periodic box
+        problems += _box_problems(f, frames, n)
+    if version >= 7 and STATICS in f:
+        problems += _statics_problems(f, frames)
     if need_restart and version < 6:
         problems.append(f"blobsim format {version} keeps an older restart state (resuming needs format 6): "
                         "run it again")
@@ -535,6 +539,48 @@ def trajectory_problems(f, need_restart: bool = False) -> list[str]:
     return [x for x in problems if x]
 
 
+BOX_BLOCK = 1 << 16  # frames of a box's edges checked at a time
+
+
+def _box_problems(f, frames: int, n: int) -> list[str]:
+    """Why a periodic box's record would trip a reader: its images or edges missing or of another shape, or an
+    edge that is not a finite number, or a side (L_x, L_y) that is not > 0."""
+    image = [_shape_problem(f, f"{IMAGE}/{name}", shape, kinds) for name, shape, kinds in
+             (("value", (frames, n, 2), "i"), ("step", (frames,), "iu"))]
+    if any(image):
+        return [x for x in image if x]
+    edges = f.get(EDGES)
+    if isinstance(edges, h5py.Group):  # a box that changes: sides [frames, 2], or box vectors [frames, 2, 2]
+        shape = (frames, 2, 2) if len(getattr(edges.get("value"), "shape", ())) == 3 else (frames, 2)
+        problem = _shape_problem(f, f"{EDGES}/value", shape) or _shape_problem(f, f"{EDGES}/step", (frames,), "iu")
+        values = edges.get("value")
+    else:
+        problem = _shape_problem(f, EDGES, (2,))
+        values = edges
+    if problem:
+        return [problem]
+    blocks = [values[...][None]] if values.ndim == 1 else \
+        (values[k:k + BOX_BLOCK] for k in range(0, values.shape[0], BOX_BLOCK))
+    for e in blocks:
+        if not np.isfinite(e).all():
+            return [f"{EDGES} holds a value that is not a finite number"]
+        sides = e if e.ndim == 2 else np.stack([e[:, 0, 0], e[:, 1, 1]], axis=1)  # L_x, L_y
+        if not (sides > 0.0).all():
+            return [f"{EDGES} holds a side of the box that is not > 0 ({float(sides.min())!r} m)"]
+    return []
+
+
+def _statics_problems(f, frames: int) -> list[str]:
+    """Why the colliders' record (format 7 on) would trip a reader: a series missing or not one row per frame
+    and one per collider."""
+    position = _shape_problem(f, f"{STATICS}/position/value", (frames, None, 2))
+    if position:
+        return [position]
+    count = f[f"{STATICS}/position/value"].shape[1]
+    return [x for x in (_shape_problem(f, f"{STATICS}/{name}/value", (frames, count, *tail))
+                        for name, tail in (("angle", ()), ("force", (2,)), ("torque", ()))) if x]
+
+
 @contextmanager
 def reading(path):
     """Turn a failure while reading a trajectory's data (a damaged block passes the layout
@@ -543,7 +589,7 @@ def reading(path):
         yield
     except TrajectoryError:
         raise
-    except (OSError, RuntimeError, ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+    except (OSError, RuntimeError, ValueError, KeyError, TypeError, IndexError, UnicodeDecodeError) as e:
         raise TrajectoryError(f"{path}: damaged, cannot be read ({str(e).splitlines()[0]})") from None
 
 
@@ -677,7 +723,37 @@ def _resume_problems(f, path, scene, params) -> list[str]:
         if params.steps <= last:
             problems.append(f"{path}: the run {'is complete at' if complete else 'already reached'} step {last}; "
                             f"give more --steps (got {params.steps}) to extend it")
-        return problems
+        return problems + [f"{path}: {x}; it cannot be resumed" for x in restart_value_problems(f)]
+
+
+def restart_value_problems(f) -> list[str]:
+    """Why the restart state of an open file (its shapes checked by trajectory_problems) is not one a step can
+    start from: the blobs' or the colliders' (static_pose) values not all finite numbers (an impact record's
+    energy left with is -inf before it bounces), a stick point on an edge the blobs do not have, or an impact
+    record of a pair that is not two of its blobs, in order."""
+    restart = f[RESTART]
+    n, b = restart["position"].shape[0], f[f"{PARAMETERS}/blob_offsets"].shape[0] - 1
+    for name, *_ in RESTART_FIELDS + (("pair_impact",),):
+        if name not in restart or restart[name].dtype.kind != "f":
+            continue
+        values = restart[name][...]
+        bad = ~np.isfinite(values)
+        if name in ("impact", "pair_impact"):  # NO_BOUNCE: the energy it left with before a bounce
+            bad[:, 1] &= values[:, 1] != -np.inf
+        if bad.any():
+            row = int(np.argwhere(bad)[0][0])
+            return [f"{RESTART}/{name} holds a value that is not a finite number (row {row}: "
+                    f"{values[row].tolist()})"]
+    stick = restart["stick_edge"][...]
+    if stick.size and (stick.min() < -1 or stick.max() >= n):
+        return [f"{RESTART}/stick_edge holds an edge the {n} vertices do not have ({int(stick.min())} .. "
+                f"{int(stick.max())}; -1: none)"]
+    keys = restart["pair_key"][...]
+    if len(keys) and (keys.min() < 0 or keys.max() >= b * b or np.any(keys // b >= keys % b)
+                      or np.any(np.diff(keys) <= 0)):
+        return [f"{RESTART}/pair_key holds a key that is not a pair a < b of the {b} blobs as a × {b} + b, "
+                f"in increasing order"]
+    return []
 
 
 def stored_scene(f, path):
@@ -685,7 +761,12 @@ def stored_scene(f, path):
     from ..scene.schema import SceneError, parse_scene
     source = text(f[PARAMETERS].attrs.get("source", "")) or str(path)  # so the name is the scene's own
     try:
-        return parse_scene(text(f[PARAMETERS]["scene"][()]), source)
+        scene = parse_scene(text(f[PARAMETERS]["scene"][()]), source)
+        recorded = f[f"{STATICS}/position/value"].shape[1] if STATICS in f else len(scene.statics)
+        if recorded != len(scene.statics):  # (each series' shape: trajectory_problems)
+            raise TrajectoryError(f"{path}: not a usable blobsim trajectory: {STATICS} records {recorded} colliders, "
+                                  f"its scene has {len(scene.statics)}")
+        return scene
     except SceneError as e:
         raise TrajectoryError(f"{path}: its stored scene is not valid: {e.problems[0]}") from None
     except UnicodeDecodeError:

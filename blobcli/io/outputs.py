@@ -8,9 +8,13 @@
 - `create_partial(path)` makes `<path>.partial` exclusively (O_EXCL | O_NOFOLLOW): never
   through a symlink, never over another run's frames.
 - `publish(partial, path)` renames the finished file into place atomically.
-- `replaced(path)` gives every other output (charts, tables, scene copies, exports, recordings) a
+- `replaced(path)` gives every other output (charts, pictures, tables, scene copies, recordings) a
   fresh temporary name beside `path`, renamed onto it when whole: no command writes through a
   link it did not make (the rename replaces a planted link itself), and none leaves half a file.
+  `replaced_together(paths)` does the same for files written as one (an XDMF export and its data).
+- `clobber_problems(outputs, inputs)` says which outputs are files the command reads (by identity:
+  the same device and inode, so a hard link or a symlink to one too): every command refuses them
+  before any work, whatever the output (a trajectory, a chart, --json, a lock).
 """
 
 from __future__ import annotations
@@ -18,12 +22,14 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import shutil
 import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
 NAME_MAX = 255  # bytes in one path component on Linux file systems
+PATH_MAX = 4096  # bytes in a whole path on Linux, its terminating NUL included
 MIN_FREE_BYTES = 1 << 16  # a device with less free space than this is full: refused before any work
 _statvfs = os.statvfs  # bound once: the writer's own free-space checks (h5md) are separate
 
@@ -40,11 +46,25 @@ def text_problem(text: str) -> str | None:
     return None
 
 
+def _length_problem(text: str) -> str | None:
+    """Why the system would refuse `text` as a path for its length (a component over NAME_MAX bytes,
+    the whole over PATH_MAX), or None."""
+    longest = max(Path(text).parts, key=lambda part: len(part.encode()), default="")
+    if len(longest.encode()) > NAME_MAX:
+        return f"a name in it is too long ({len(longest.encode())} bytes; at most {NAME_MAX})"
+    if len(os.path.abspath(text).encode()) >= PATH_MAX:
+        return f"path is too long ({len(os.path.abspath(text).encode())} bytes; less than {PATH_MAX})"
+    return None
+
+
 def output_problem(path, suffixes=(".partial", ".lock")) -> str | None:
     """Why a file cannot be created or replaced at `path`, or None. `suffixes`: sidecar names
     that must fit too."""
     text = os.fspath(path)
     problem = "is empty" if text == "" else text_problem(text)
+    if problem:
+        return problem
+    problem = _length_problem(os.path.dirname(text) or ".")
     if problem:
         return problem
     p = Path(text)
@@ -78,7 +98,7 @@ def _special_kind(path: Path) -> str | None:
 def directory_problem(path) -> str | None:
     """Why `path` cannot be used (or created) as an output directory, or None."""
     text = os.fspath(path)
-    problem = "is empty" if text == "" else text_problem(text)
+    problem = "is empty" if text == "" else text_problem(text) or _length_problem(text)
     return problem or _place_problem(Path(text))
 
 
@@ -208,6 +228,49 @@ def replaced(path):
     except BaseException:
         Path(name).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def replaced_together(paths):
+    """`replaced` for files written as one (an XDMF file names its heavy data): yield a fresh hidden
+    directory beside them (they share a directory) to write each in under its own name; when the
+    block ends without error each is renamed onto its path, else none is."""
+    paths = [Path(p) for p in paths]
+    work = Path(tempfile.mkdtemp(prefix=f".{paths[0].name}.", dir=paths[0].parent))
+    try:
+        yield work
+        for path in paths:
+            os.replace(work / path.name, path)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def clobber_problems(outputs, inputs) -> list[tuple[str, str]]:
+    """(output, why) for each of `outputs` that is one of `inputs`, (path, what it is) pairs of the files the
+    command reads ("the scene", ...): the same file by identity (device and inode, as os.path.samefile: a hard
+    link or a symlink to it too), or, for an input not there yet (a trajectory the command writes and then
+    reads), the same real path. Every command refuses these before any work."""
+    known, pending = {}, {}
+    for source, what in inputs:
+        if source is None:
+            continue
+        try:
+            st = os.stat(source)
+            known.setdefault((st.st_dev, st.st_ino), (source, what))
+        except (OSError, ValueError):
+            pending.setdefault(os.path.realpath(source), (source, what))
+    found = []
+    for output in outputs:
+        if output is None:
+            continue
+        try:
+            st = os.stat(output)
+            hit = known.get((st.st_dev, st.st_ino))
+        except (OSError, ValueError):
+            hit = pending.get(os.path.realpath(output)) if pending else None
+        if hit:
+            found.append((output, f"is {hit[0]}, {hit[1]}"))
+    return found
 
 
 def write_text(path, text: str) -> None:

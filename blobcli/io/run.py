@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scene.schema import Scene
-from ..sim.measure import RUNAWAY, blob_measures, first_runaway, shape_warning
+from ..sim.measure import RUNAWAY, blob_measures, first_runaway, first_runaway_wall, shape_warning
 from ..sim.model import SimulationError, build, build_params
 from ..sim.pipeline import advance, settings
 from ..sim.schedule import Schedules
@@ -157,11 +157,17 @@ def _run_chosen(scene, path, progress, resume, model, state, params, choice) -> 
             choice.observe(threads, ran, elapsed, time.process_time() - cpu0)
             done += ran
             if ran < count:
-                bad = first_runaway(state.position, RUNAWAY)
-                blob = int(np.searchsorted(model.offsets, bad, side="right") - 1)
                 status = "runaway"
-                message = (f"step {done + 1}: blob {blob} ({model.names[blob]}) vertex {bad - model.offsets[blob]} "
-                           f"is at {state.pos[bad].tolist()}: non-finite or beyond {RUNAWAY:g} m")
+                bad = first_runaway(state.position, RUNAWAY)
+                if bad >= 0:
+                    blob = int(np.searchsorted(model.offsets, bad, side="right") - 1)
+                    message = (f"step {done + 1}: blob {blob} ({model.names[blob]}) vertex "
+                               f"{bad - model.offsets[blob]} is at {state.pos[bad].tolist()}: non-finite or beyond "
+                               f"{RUNAWAY:g} m")
+                else:
+                    wall = first_runaway_wall(state.static_pose, RUNAWAY)
+                    message = (f"step {done + 1}: static[{wall}]'s pose {state.static_pose[wall].tolist()} "
+                               f"(dx, dy, turn, s, V, s0) is non-finite or beyond {RUNAWAY:g} m")
                 break
             if done % params.every == 0:
                 record(done)

@@ -30,11 +30,15 @@ MIN_DT = 1e-9  # s
 MIN_LENGTH = 1e-6  # m: radii, sizes and segment lengths; smaller shapes lose their area to round-off
 MAX_COORDINATE = 1e6  # m: positions beyond this stop a run as runaway, so no blob may start there
 MAX_NAME = 100  # characters of a scene or blob name (the scene name becomes a file name)
-MAX_SURFACE_SPEED = 1000.0  # m/s: a conveyor surface's speed
+MAX_SURFACE_SPEED = 1000.0  # m/s: a conveyor surface's speed, and a moving collider's surface's
+MIN_MASS = 1e-6  # kg: a blob's or a loaded wall's mass (its inverse, 1 / m per vertex, stays a number)
+MAX_LOAD_ACCELERATION = 1e6  # m/s²: a loaded wall's load / mass (about 10⁵ g)
+MAX_SHEAR = 1000.0  # |γ| of a periodic box's shear keyframes: the images' shift γ L_y stays a number far from overflow
+MAX_BOX_CELLS = 4_000_000  # a periodic box's broad-phase cells: (L_x / c)(L_y / c), c = 2.5 × the largest radius
 STATIC_MATERIAL_KEYS = ("friction", "static_friction", "restitution", "surface_velocity")  # any collider kind
 STATIC_MOTION_KEYS = ("velocity", "angular_velocity", "pivot", "path", "load", "load_direction", "mass")  # any kind
 MAX_KEYFRAMES = 10_000  # rows of a path or a schedule
-SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution")
+SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution", "force", "torque")
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/core/area.c (in this order)
 
@@ -67,6 +71,10 @@ def between(lo, hi):
 
 def length(v):
     return None if v >= MIN_LENGTH else "must be > 0" if v <= 0 else f"must be >= {MIN_LENGTH:g} m"
+
+
+def mass_value(v):
+    return None if v >= MIN_MASS else "must be > 0" if v <= 0 else f"must be >= {MIN_MASS:g} kg"
 
 
 def time_step(v):
@@ -138,8 +146,10 @@ class SceneSettings:
     seed: int = key(0, "", "seed of the random placement of blobs with `count`: the same seed, the same scene",
                     "int", between(0, 2 ** 63 - 1))
     periodic: tuple | None = key(None, "m", "a periodic box [Lx, Ly]: [-Lx/2, Lx/2) × [-Ly/2, Ly/2), blobs leave "
-                                 "through one edge and come back through the other; default: an open world", "vec2",
-                                 positive_vec)
+                                 "through one edge and come back through the other; each side at least 5 × the "
+                                 "largest blob's radius, and at most (L_x / c)(L_y / c) = "
+                                 f"{MAX_BOX_CELLS:,} cells of the broad phase, c = 2.5 × that radius (as a scale "
+                                 "schedule shrinks it most); default: an open world", "vec2", positive_vec)
 
 
 @dataclass(frozen=True)
@@ -159,10 +169,16 @@ class BlobDef:
     radius: float | None = key(None, "m", "radius of a circular ring", "float", length)
     vertices: int = key(32, "", "vertex count of a circular ring", "int", between(3, MAX_BLOB_VERTICES))
     points: tuple | None = key(None, "m", "explicit simple polygon, either winding (instead of a ring)", "points")
-    mass: float = key(1.0, "kg", "total mass, spread evenly over the vertices", "float", positive)
+    mass: float = key(1.0, "kg", f"total mass, spread evenly over the vertices (at least {MIN_MASS:g} kg)", "float",
+                      mass_value)
     velocity: tuple = key((0.0, 0.0), "m/s", "initial velocity", "vec2")
     angular_velocity: float = key(0.0, "rad/s", "initial rigid spin about the blob's centre of mass, "
                                   "counter-clockwise positive; added to `velocity`", "float")
+    force: tuple = key((0.0, 0.0), "N", "driving force [Fx, Fy] through the blob's centre of mass, shared over its "
+                       "vertices by mass (each accelerated by F / mass); a schedule (blob.NAME.force) makes it a "
+                       "player's input", "vec2")
+    torque: float = key(0.0, "N m", "driving torque about the blob's centre of mass, counter-clockwise positive: "
+                        "tangential forces that leave its momentum unchanged (docs/physics.md, 'Driving')", "float")
     pressure: float = key(1.0, "", "target area = pressure × rest area", "float", positive)
     compliance: float = key(2e-4, "m/N", "perimeter compliance α (XPBD); 0 = inextensible", "float", nonnegative)
     area_compliance: float = key(0.0, "m²/N", "method xpbd: compliance α of the area constraint; 0 = hard", "float",
@@ -218,20 +234,25 @@ class StaticDef:
                                  "kinematic wall; default: fixed)", "vec2",
                                  lambda v: None if math.hypot(*v) <= MAX_SURFACE_SPEED
                                  else f"must be at most {MAX_SURFACE_SPEED:g} m/s")
-    angular_velocity: float | None = key(None, "rad/s", "turns at this rate about `pivot`, counter-clockwise",
-                                         "float", between(-1000.0, 1000.0))
+    angular_velocity: float | None = key(None, "rad/s", "turns at this rate about `pivot`, counter-clockwise; its "
+                                         "surface's fastest point, at the speed of `velocity` plus the rate × its "
+                                         "farthest point from `pivot` (a plane's: where it leaves the ±10⁶ m world), "
+                                         f"at most {MAX_SURFACE_SPEED:,g} m/s", "float", between(-1000.0, 1000.0))
     pivot: tuple | None = key(None, "m", "the point it turns about, whose position and angle are recorded; "
                               "default: a plane's point, a segment's midpoint, a box's or circle's centre, a "
                               "polygon's centroid", "vec2")
     path: tuple | None = key(None, "", "keyframes [t s, dx m, dy m, turn deg] of its displacement from the pose "
                              "given (turned about `pivot`), linear between, the first held before it and the last "
-                             "after (instead of velocity)", "keyframes")
+                             "after (instead of velocity); between two keyframes its surface's fastest point, at the "
+                             "distance (dx, dy) moves over their Δt plus the turn over Δt (rad) × its farthest point "
+                             f"from `pivot` (as for angular_velocity), at most {MAX_SURFACE_SPEED:,g} m/s", "keyframes")
     load: float | None = key(None, "N", "a loaded wall (a piston): pushed along `load_direction` by this force, "
                              "it moves along that line only, under the load and the blobs' contact forces (not "
-                             "gravity: its weight, if wanted, is part of the load)", "float", nonnegative)
+                             "gravity: its weight, if wanted, is part of the load); load / mass at most "
+                             f"{MAX_LOAD_ACCELERATION:,.0f} m/s²", "float", nonnegative)
     load_direction: tuple = key((0.0, -1.0), "", "a loaded wall's direction of motion and of its load",
                                 "vec2", nonzero_vec)
-    mass: float = key(1.0, "kg", "a loaded wall's mass", "float", positive)
+    mass: float = key(1.0, "kg", f"a loaded wall's mass (at least {MIN_MASS:g} kg)", "float", mass_value)
 
     @property
     def moves(self) -> bool:
@@ -247,9 +268,11 @@ class ScheduleDef:
     key: str = key(None, "", "what changes: blob.NAME.KEY (NAME a blob's name, or NAME_* for a grid's copies; "
                    "KEY one of " + ", ".join(SCHEDULED_BLOB_KEYS) + "), scene.gravity, scene.periodic or "
                    "scene.shear", "str")
-    at: tuple = _key(None, "", "keyframes [t s, value] ([t, gx, gy] for gravity, [t, Lx, Ly] for the periodic "
-                    "box, [t, γ] for its shear strain); `scale` is a linear size factor, 1 the size written: rest "
-                    "edge lengths × s, target area × s²", "keyframes")
+    at: tuple = _key(None, "", "keyframes [t s, value] ([t, Fx, Fy] for a blob's force, [t, gx, gy] for gravity, "
+                    "[t, Lx, Ly] for the periodic box, [t, γ] for its shear strain); `scale` is a linear size "
+                    "factor, 1 the size written: rest edge lengths × s, target area × s²; bounds: γ within "
+                    f"±{MAX_SHEAR:,g}, mass at least {MIN_MASS:g} kg, a scaled blob's radius (its farthest vertex "
+                    f"from its centre) × s from {MIN_LENGTH:g} to {MAX_COORDINATE:,.0f} m", "keyframes")
 
     @property
     def blob_key(self) -> str:
@@ -348,6 +371,14 @@ class _Problems:
         if show_got:
             text += f" (got {fmt_value(got)})"
         self.items.append(text)
+
+
+def scene_problem(scene: Scene, path: tuple, message: str) -> str:
+    """A problem with a valid scene that a command cannot use (`blobsim jam`'s), worded as `check` words its
+    own: `file:line: key.path: message`, the line of the key (or of its table, when the key is not written)."""
+    problems = _Problems(scene.source, key_lines(scene.text))
+    problems.add(path, message, show_got=False)
+    return problems.items[0]
 
 
 def _number(v) -> bool:
@@ -532,6 +563,7 @@ def _check_blob(b: BlobDef, path, problems: _Problems, periodic: bool):
 
 
 def _check_static(s: StaticDef, raw: dict, path, problems: _Problems):
+    before = len(problems.items)
     ways = [way for way, keys in (("velocity", ("velocity", "angular_velocity")), ("path", ("path",)),
                                   ("load", ("load",))) if any(k in raw for k in keys)]
     if len(ways) > 1:
@@ -552,6 +584,34 @@ def _check_static(s: StaticDef, raw: dict, path, problems: _Problems):
         problems.add(path + ("b",), f"segment must be at least {MIN_LENGTH:g} m long", s.b)
     if s.kind == "polygon":
         _check_polygon(s.points, path + ("points",), problems)
+    if s.load is not None and s.load > MAX_LOAD_ACCELERATION * s.mass:
+        problems.add(path + ("load",), f"load / mass is {s.load / s.mass:.4g} m/s²; at most "
+                     f"{MAX_LOAD_ACCELERATION:,.0f} m/s² (mass {s.mass:g} kg)", s.load)
+    if len(problems.items) == before and (s.angular_velocity is not None or s.path is not None):
+        _check_surface_speed(s, path, problems)  # (of a collider that is otherwise well made)
+
+
+def _check_surface_speed(s: StaticDef, path, problems: _Problems):
+    """A collider that turns moves its surface fastest at its farthest point from its pivot, R: |v| + |ω| R at a
+    velocity, |Δd| / Δt + |Δθ| / Δt R between a path's keyframes. The contacts keep a blob out of a wall up to
+    MAX_SURFACE_SPEED (core/walls.c); a faster one is refused."""
+    from ..colliders import surface_reach
+    reach = surface_reach(s, MAX_COORDINATE)
+    if s.angular_velocity is not None:
+        speed = math.hypot(*(s.velocity or (0.0, 0.0))) + abs(s.angular_velocity) * reach
+        if speed > MAX_SURFACE_SPEED:
+            problems.add(path + ("angular_velocity",), f"moves its surface at up to {speed:.4g} m/s (|velocity| + "
+                         f"|ω| × {reach:.4g} m, its farthest point from its pivot); at most {MAX_SURFACE_SPEED:,g} "
+                         "m/s", s.angular_velocity)
+        return
+    for j, (a, b) in enumerate(zip(s.path, s.path[1:])):
+        dt = b[0] - a[0]
+        speed = math.hypot(b[1] - a[1], b[2] - a[2]) / dt + math.radians(abs(b[3] - a[3])) / dt * reach
+        if speed > MAX_SURFACE_SPEED:
+            problems.add(path + ("path", j + 1), f"moves its surface at up to {speed:.4g} m/s from keyframe {j} to "
+                         f"{j + 1} (|Δ(dx, dy)| / Δt + |Δturn| / Δt × {reach:.4g} m, its farthest point from its "
+                         f"pivot); at most {MAX_SURFACE_SPEED:,g} m/s", list(b))
+            return
 
 
 def parse_scene(text: str, source: str = "<scene>") -> Scene:
@@ -575,6 +635,8 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
             problems.add((k,), "unknown table" + (f"; did you mean {hint[0]!r}?" if hint else ""), show_got=False)
 
     settings = _table(SceneSettings, raw.get("scene", {}), ("scene",), problems) or SceneSettings()
+    # whether the box is periodic, also when [scene] has a problem elsewhere (its blobs need no region then)
+    periodic = settings.periodic is not None or (isinstance(raw.get("scene"), dict) and "periodic" in raw["scene"])
     if settings.duration is not None and settings.steps is not None:
         problems.add(("scene", "steps"), "give duration or steps, not both", show_got=False)
     if settings.method not in METHODS:
@@ -592,7 +654,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     for i, rb in enumerate(blobs):
         b = _table(BlobDef, rb, ("blob", i), problems)
         if b is not None:
-            _check_blob(b, ("blob", i), problems, settings.periodic is not None)
+            _check_blob(b, ("blob", i), problems, periodic)
             blob_defs.append(b)
 
     from ..colliders import (
@@ -633,7 +695,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         if missing:
             problems.add(path, f"needs {' and '.join(missing)}", show_got=False)
             continue
-        if _check_schedule(s, names, path, problems, settings.periodic is not None):
+        if _check_schedule(s, names, path, problems, periodic):
             schedule_defs.append(s)
     targets = [(s.key, tuple(schedule_targets(s, names))) for s in schedule_defs]
     for i, (k, blobs_hit) in enumerate(targets):
@@ -645,6 +707,9 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     scene = Scene(settings, output, tuple(blob_defs), tuple(static_defs), tuple(schedule_defs), source, text)
     if not problems.items:
         _check_size(scene, problems)
+        _check_driving(scene, problems)
+    if not problems.items and any(s.blob_key == "scale" for s in schedule_defs if s.key.startswith("blob.")):
+        _check_scales(scene, problems)  # (before the box's cells, which it sizes)
     if not problems.items and settings.periodic is not None:
         _check_box(scene, problems)
     if not problems.items and any(b.count > 1 for b in blob_defs):
@@ -680,8 +745,8 @@ def schedule_targets(s: ScheduleDef, names: list[str]) -> list[int]:
     return [k for k, name in enumerate(names) if fnmatch.fnmatchcase(name, pattern)]
 
 
-SCHEDULE_CHECKS = {"mass": positive, "pressure": positive, "scale": positive, "friction": nonnegative,
-                   "static_friction": nonnegative, "restitution": unit_interval}
+SCHEDULE_CHECKS = {"mass": mass_value, "pressure": positive, "scale": positive, "friction": nonnegative,
+                   "static_friction": nonnegative, "restitution": unit_interval}  # force, torque: _check_driving
 
 
 def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: bool) -> bool:
@@ -693,6 +758,11 @@ def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: 
         if not periodic:
             problems.add(path + ("key",), "only in a periodic box ([scene] periodic)", s.key)
             return False
+        for j, (_, gamma) in enumerate(s.at):
+            if abs(gamma) > MAX_SHEAR:
+                problems.add(path + ("at", j), f"shear strain γ must be within ±{MAX_SHEAR:,g} (the images' shift "
+                             "γ L_y stays a number the step can wrap)", gamma)
+                return False
         return True
     if s.key in ("scene.gravity", "scene.periodic"):
         what = s.key.split(".")[1]
@@ -722,13 +792,15 @@ def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: 
         problems.add(path + ("key",), f"no blob is named {pattern!r}" + (f"; did you mean {hint[0]!r}?" if hint else
                                                                         " (a grid's copies: NAME_*)"), s.key)
         return False
-    if width != 2:
-        problems.add(path + ("at",), "keyframes are [t, value]: 2 numbers each", list(s.at[0]))
+    if width != (3 if parts[-1] == "force" else 2):
+        problems.add(path + ("at",), "force keyframes are [t, Fx, Fy]: 3 numbers each" if parts[-1] == "force"
+                     else "keyframes are [t, value]: 2 numbers each", list(s.at[0]))
         return False
-    for j, (_, value) in enumerate(s.at):
-        complaint = SCHEDULE_CHECKS[parts[-1]](value)
+    for j, (_, *value) in enumerate(s.at):
+        check = SCHEDULE_CHECKS.get(parts[-1])
+        complaint = check(value[0]) if check else None
         if complaint:
-            problems.add(path + ("at", j), f"{parts[-1]} {complaint}", value)
+            problems.add(path + ("at", j), f"{parts[-1]} {complaint}", value[0])
             return False
     return True
 
@@ -757,18 +829,102 @@ def _check_size(scene: Scene, problems: _Problems):
         problems.add(path, message, show_got=False)
 
 
+STRIDE = 0.5  # of a mean rest edge: the farthest a blob moves in one substep (core/integrate.c's STRIDE)
+
+
+def _check_driving(scene: Scene, problems: _Problems):
+    """Refuse a driving force or torque (a blob's, or a schedule keyframe's) that accelerates a blob faster than
+    a step can follow. The substep rule (core/integrate.c: bc_substeps_for) keeps a blob's move within STRIDE of
+    a mean rest edge L a substep, with at most `most` substeps (max_substeps, within the step's work bound:
+    pipeline.settings); a blob driven from rest reaches a dt in one step, a = |F| / M + |τ| r / I (r its farthest
+    vertex from the centre of mass, I = Σ m |r|², at the shape written), so a dt² must stay within most STRIDE L.
+    M is the least mass a mass schedule gives the blob; a scale schedule is not checked."""
+    s = scene.settings
+    most = max(s.substeps, min(s.max_substeps, MAX_STEP_WORK // max(s.iterations * scene.vertex_count, 1)))
+    names = expanded_names(scene.blobs)
+    table_of = [i for i, b in enumerate(scene.blobs) for _ in range(b.copies)]
+    # per [[blob]] table: the largest |F| and |τ| it is given, with where and as written, and its least mass
+    force = [(math.hypot(*b.force), ("blob", i, "force"), list(b.force)) for i, b in enumerate(scene.blobs)]
+    torque = [(abs(b.torque), ("blob", i, "torque"), b.torque) for i, b in enumerate(scene.blobs)]
+    mass = [b.mass for b in scene.blobs]
+    for k, sc in enumerate(scene.schedules):
+        if sc.key.startswith("scene."):
+            continue
+        for i in sorted({table_of[x] for x in schedule_targets(sc, names)}):
+            for j, row in enumerate(sc.at):
+                if sc.blob_key == "mass":
+                    mass[i] = min(mass[i], row[1])
+                elif sc.blob_key == "force" and math.hypot(row[1], row[2]) > force[i][0]:
+                    force[i] = (math.hypot(row[1], row[2]), ("schedule", k, "at", j), list(row))
+                elif sc.blob_key == "torque" and abs(row[1]) > torque[i][0]:
+                    torque[i] = (abs(row[1]), ("schedule", k, "at", j), list(row))
+    for i, b in enumerate(scene.blobs):
+        if force[i][0] == 0.0 and torque[i][0] == 0.0:
+            continue
+        if b.points is None:  # a ring: n edges of 2 R sin(π / n), every vertex at R
+            edge, farthest, mean_square = 2.0 * b.radius * math.sin(math.pi / b.vertices), b.radius, b.radius ** 2
+        else:
+            n = len(b.points)
+            cx, cy = sum(p[0] for p in b.points) / n, sum(p[1] for p in b.points) / n
+            squares = [(x - cx) ** 2 + (y - cy) ** 2 for x, y in b.points]
+            edge = sum(math.dist(b.points[j - 1], b.points[j]) for j in range(n)) / n
+            farthest, mean_square = math.sqrt(max(squares)), sum(squares) / n
+        pushed = force[i][0] / mass[i]  # m/s², and the torque's at the farthest vertex: |τ| r / (M mean |r|²)
+        turned = torque[i][0] * farthest / (mass[i] * mean_square)
+        limit = most * STRIDE * edge / s.dt ** 2
+        if pushed + turned > limit:
+            _, path, got = force[i] if pushed >= turned else torque[i]
+            problems.add(path, f"drives {b.name or f'blob{i}'} at {pushed + turned:.4g} m/s² (|F| / M + |τ| r / I, "
+                         f"M = {mass[i]:g} kg); at most {limit:.4g} m/s² here, or one step from rest moves it more "
+                         f"than {STRIDE:g} × its edge ({STRIDE * edge:.3g} m) a substep at the most substeps a step "
+                         f"takes ({most})", got)
+
+
 PERIODIC_SIDE = 5.0  # × the largest blob radius: the least side of a periodic box
+BROAD_MARGIN = 0.25  # × the larger radius: the broad phase's margin (core/broad_phase.c), its cells 2 r (1 + margin)
+
+
+def _radii(scene: Scene) -> list[float]:
+    """Each [[blob]] table's radius as written: its ring's farthest vertex from the vertex average (m)."""
+    import numpy as np
+
+    from ..sim.model import blob_points
+    return [float(np.hypot(*(ring - ring.mean(axis=0)).T).max()) for ring in (blob_points(b) for b in scene.blobs)]
+
+
+def _scales(scene: Scene) -> list[list[tuple[float, int, int]]]:
+    """Each [[blob]] table's scale keyframes, (s, schedule index, keyframe index), from the scale schedules that
+    reach its blobs ([] for none: its size as written)."""
+    names = expanded_names(scene.blobs)
+    table_of = [i for i, b in enumerate(scene.blobs) for _ in range(b.copies)]
+    out = [[] for _ in scene.blobs]
+    for k, sc in enumerate(scene.schedules):
+        if sc.key.startswith("blob.") and sc.blob_key == "scale":
+            for i in sorted({table_of[x] for x in schedule_targets(sc, names)}):
+                out[i] += [(row[1], k, j) for j, row in enumerate(sc.at)]
+    return out
+
+
+def _check_scales(scene: Scene, problems: _Problems):
+    """A scale schedule keeps each blob's radius × s from MIN_LENGTH (smaller, a blob loses its area to
+    round-off) to MAX_COORDINATE (larger, it leaves the world)."""
+    for i, (radius, keyframes) in enumerate(zip(_radii(scene), _scales(scene))):
+        for factor, k, j in keyframes:
+            if not MIN_LENGTH <= factor * radius <= MAX_COORDINATE:
+                problems.add(("schedule", k, "at", j), f"scales blob[{i}] (radius {radius:.4g} m) to "
+                             f"{factor * radius:.4g} m; its radius must stay from {MIN_LENGTH:g} to "
+                             f"{MAX_COORDINATE:g} m", factor)
+                return
 
 
 def _check_box(scene: Scene, problems: _Problems):
     """A periodic box must be wider than any pair of blobs can reach (r_a + r_b + the broad phase's
     margin, at most 2.5 r_max) twice over, so that the nearest image of a blob is the only one that
-    can touch another."""
-    import numpy as np
-
-    from ..sim.model import blob_points
-    largest = max(float(np.hypot(*(ring - ring.mean(axis=0)).T).max())
-                  for ring in (blob_points(b) for b in scene.blobs))
+    can touch another; and of at most MAX_BOX_CELLS cells of the broad phase's grid (core/broad_phase.c:
+    periodic_grid), each 2 r_max (1 + margin) wide, r_max the largest radius of a blob when it is smallest (a
+    scale schedule's least factor), whatever the box is (a periodic schedule's keyframes too)."""
+    radii = _radii(scene)
+    largest = max(radii)
     if min(scene.settings.periodic) < PERIODIC_SIDE * largest:
         problems.add(("scene", "periodic"), f"each side must be at least {PERIODIC_SIDE:g} × the largest blob's "
                      f"radius ({PERIODIC_SIDE * largest:.4g} m)", list(scene.settings.periodic))
@@ -776,6 +932,17 @@ def _check_box(scene: Scene, problems: _Problems):
         if s.key == "scene.periodic" and min(min(row[1:]) for row in s.at) < PERIODIC_SIDE * largest:
             problems.add(("schedule", i, "at"), f"box sides must be at least {PERIODIC_SIDE:g} × the largest blob's "
                          f"radius ({PERIODIC_SIDE * largest:.4g} m)", show_got=False)
+    r_max = max(r * min([1.0] if not keys else [f for f, _, _ in keys]) for r, keys in zip(radii, _scales(scene)))
+    cell = 2.0 * r_max * (1.0 + BROAD_MARGIN)  # (r_max >= MIN_LENGTH: _check_scales)
+    boxes = [(("scene", "periodic"), scene.settings.periodic)]
+    boxes += [(("schedule", i, "at", j), row[1:]) for i, s in enumerate(scene.schedules) if s.key == "scene.periodic"
+              for j, row in enumerate(s.at)]
+    for path, (lx, ly) in boxes:
+        nx, ny = max(1, math.floor(lx / cell)), max(1, math.floor(ly / cell))
+        if nx * ny > MAX_BOX_CELLS:
+            problems.add(path, f"the box is {nx:,} × {ny:,} cells of the broad phase's grid (each {cell:.4g} m, 2.5 × "
+                         f"the largest blob's radius); at most {MAX_BOX_CELLS:,} cells", [lx, ly])
+            return
 
 
 def run_length_problems(scene: Scene) -> list[tuple[tuple, str]]:

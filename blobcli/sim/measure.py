@@ -34,6 +34,16 @@ def first_runaway(position: np.ndarray, limit: float = RUNAWAY) -> int:
     return int(lib.bc_first_runaway_in(_pointer(ffi, position, "double *"), position.shape[1], limit))
 
 
+def first_runaway_wall(static_pose: np.ndarray, limit: float = RUNAWAY) -> int:
+    """Index of the first collider whose pose row (S, WALL_POSE_COLUMNS) holds a non-finite value or a
+    displacement beyond `limit` (m), or -1."""
+    from ..core import load
+
+    ffi, lib = load()
+    pose = np.ascontiguousarray(static_pose, dtype=np.float64)
+    return int(lib.bc_first_runaway_wall(_pointer(ffi, pose, "double *"), pose.shape[0], limit))
+
+
 def shape_warning(state: State, model: Model) -> str:
     """One sentence on blobs that are inside out or self-intersecting now (rings of up to
     BC_SELF_CROSSING_MAX_VERTICES vertices are checked for crossings), or ""."""

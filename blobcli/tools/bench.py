@@ -186,12 +186,19 @@ def measure_stages(blobs: int, settle_steps: int) -> dict:
             "contacts_per_iteration": contacts, "vertices": model.vertex_count}
 
 
+PISTON = Path(__file__).resolve().parents[2] / "scenes" / "piston.toml"  # the loaded wall measure_walls times
+
+
+def inputs() -> list[tuple[Path, str]]:
+    """The files `blobsim bench` reads (its other scenes it writes itself, in a temporary directory)."""
+    return [(PISTON, "a scene bench measures")]
+
+
 def measure_walls(settle_steps: int, steps: int) -> dict:
     """What scenes/piston.toml's loaded piston costs (stage clock, after settling): the walls stage (moving it)
     and the collider stage (every collider's contacts, the piston's share of its pushes, the forces), against
     the same scene with the piston fixed where it comes to rest."""
-    from pathlib import Path
-    text = (Path(__file__).resolve().parents[2] / "scenes" / "piston.toml").read_text()
+    text = PISTON.read_text()
     fixed = text.replace("center = [0.0, 2.6]", "center = [0.0, 1.3523]")
     for line in ("load = 200.0", "load_direction = [0.0, -1.0]", "mass = 5.0"):
         fixed = fixed.replace(line + "\n", "")

@@ -22,26 +22,35 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
-from ..scene.schema import Scene, parse_scene, resolved_toml
+from ..scene.schema import Scene, SceneError, parse_scene, resolved_toml
+
+SEED_MAX = 2 ** 63 - 1  # [scene] seed at most (scene/schema.py)
 
 DEFAULT_PRESSURE = 3e-6  # p̃* = p* ᾱ: as near zero as the relaxation resolves (sim/jamming.py)
 DEFAULT_DRAG = 1.0  # 1/s: the relaxation's drag when the scene has none
+MAX_SEEDS = 10_000  # --seeds at most: each seed is a task, a trajectory file and a row of the JSON
 KEYS = ("phi_j", "z_j", "z_j_all", "pressure", "reduced_pressure", "rattlers", "beta")  # per seed, in the JSON
 
 
-def jam_problem(scene: Scene) -> str | None:
-    """Why this scene cannot be jammed, or None."""
+def jam_problem(scene: Scene, seeds: int = 1) -> tuple[tuple, str] | None:
+    """Why this scene cannot be jammed from `seeds` starts, or None: (the key's path, as `check` names it, what
+    is wrong)."""
     if scene.settings.periodic is None:
-        return "jam compresses a periodic box: the scene needs [scene] periodic = [Lx, Ly]"
+        return ("scene", "periodic"), "jam compresses a periodic box: the scene needs [scene] periodic = [Lx, Ly]"
     if len(scene.statics) > 0:
-        return "jam compresses blobs alone: the scene has [[static]] colliders"
+        return ("static", 0), "jam compresses blobs alone: the scene has [[static]] colliders"
     if scene.schedules:
-        return "jam changes the box itself: the scene has [[schedule]] tables"
+        return ("schedule", 0), "jam changes the box itself: the scene has [[schedule]] tables"
     if scene.blob_count < 2:
-        return "jam needs more than one blob"
-    if any(b.compliance == 0.0 for b in scene.blobs):
-        return ("jam measures pressure in units of the blobs' perimeter compliance: a blob has compliance = 0 "
-                "(inextensible)")
+        return ("blob", 0), "jam needs more than one blob"
+    soft = [i for i, b in enumerate(scene.blobs) if b.compliance == 0.0]
+    if soft:
+        return (("blob", soft[0], "compliance"), "jam measures pressure in units of the blobs' perimeter compliance: "
+                "a blob has compliance = 0 (inextensible)")
+    last = scene.settings.seed + seeds - 1
+    if last > SEED_MAX:
+        return (("scene", "seed"), f"the seeds run to {scene.settings.seed} + {seeds} - 1 = {last} with --seeds "
+                f"{seeds}; at most {SEED_MAX}")
     return None
 
 
@@ -52,8 +61,15 @@ def seed_scene(scene: Scene, seed: int) -> Scene:
     return parse_scene(text, scene.source)
 
 
-def run_seed(scene_toml: str, source: str, target: float, h5: str) -> dict:
-    """Jam one start (on a worker): its figures, with status ok / interrupted / failed: reason."""
+def output_files(out: Path, scene: Scene, seeds: int) -> list[Path]:
+    """Every file `run_jam` and the command write in `out`: summary.json, chart.png, then each seed's trajectory."""
+    first = scene.settings.seed
+    return [out / "summary.json", out / "chart.png", *(out / f"seed-{seed}.h5" for seed in range(first, first + seeds))]
+
+
+def run_seed(base: Scene, seed: int, target: float, h5: str) -> dict:
+    """Jam the scene's start from `seed` (on a worker; its copies placed here, so that no seed's scene is made
+    before its turn): its figures, with status ok / interrupted / failed: reason."""
     import numpy as np
 
     from ..io import interrupts
@@ -64,7 +80,10 @@ def run_seed(scene_toml: str, source: str, target: float, h5: str) -> dict:
     from ..sim.model import build, build_params
     if threading.current_thread() is not threading.main_thread():
         interrupts.clear()  # a Dask worker: a stop asked of an earlier task is not for this one
-    scene = parse_scene(scene_toml, source)
+    try:
+        scene = seed_scene(base, seed)
+    except SceneError as e:  # its copies find no place: this seed fails, the others go on
+        return {"seed": seed, "status": f"failed: {e.problems[0]}", "file": h5, "path": []}
     model, state = build(scene)
     params = build_params(scene)
     row = {"seed": scene.settings.seed, "status": "failed", "file": h5, "path": []}
@@ -186,10 +205,11 @@ def run_jam(scene: Scene, out: Path, seeds: int, target: float, scheduler=None, 
     from ..io.interrupts import caused_by_signal, pending, request_stop
     from .executor import run_tasks
     out.mkdir(parents=True, exist_ok=True)
-    scenes = [seed_scene(scene, scene.settings.seed + k) for k in range(seeds)]
-    tasks = [(s.text, s.source, target, str(out / f"seed-{s.settings.seed}.h5")) for s in scenes]
+    first = scene.settings.seed
+    tasks = [(scene, seed, target, str(out / f"seed-{seed}.h5"))
+             for seed in range(first, first + seeds)]
     announce(f"blobsim: jam {scene.name}: {seeds} seed{'s' if seeds > 1 else ''} "
-             f"({scenes[0].settings.seed}..{scenes[-1].settings.seed}), p alpha = {target:g}, in {out}")
+             f"({first}..{first + seeds - 1}), p alpha = {target:g}, in {out}")
     rows = {}
     try:
         for i, row in run_tasks(run_seed, tasks, scheduler, workers, progress=progress, label="seeds",
@@ -247,5 +267,7 @@ def chart(rows: list[dict], png: Path, target: float) -> None:
     bottom.set_xlabel("packing fraction φ")
     top.set_title(f"compression to jamming, {len(ok)} seed{'s' if len(ok) != 1 else ''} (circles: jammed)")
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    from ..io.outputs import replaced
+    with replaced(png) as tmp:  # whole or not at all, and never through a link planted there
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)

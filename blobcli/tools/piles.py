@@ -1,7 +1,7 @@
 """`python -m blobcli.tools.piles`: do piles come to rest, and what does a sleeping pile cost?
 
 Prints, for a pile of blobs dropped into a box (bench.scene_text, "piled") and for the shipped
-scenes/stack.toml: the fastest blob centre and the fastest vertex over the last second before
+scenes/stack.toml (or, with `--layout NAME ...`, for piles unlike the bench's own: LAYOUTS): the fastest blob centre and the fastest vertex over the last second before
 `--seconds` with sleeping off, and with sleeping on (the default) the share of blobs asleep and
 the wall time of that last second against the same second awake; with `--each-second-from S`,
 the pile's fastest centre and vertex (sleeping off) in every second from S to `--seconds`. Figures,
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -64,6 +65,65 @@ def each_second(scene, first: int, last: int) -> list[tuple[int, float, float]]:
     return [(second, *fastest(state, model, params, per_second)) for second in range(first, last)]
 
 
+def _segment_walls(half: float, top: float, floor: str) -> str:
+    """A floor (a plane, or a segment from -half to half) at y = 0 and two segment walls up to `top`"""
+    if floor == "plane":
+        text = '[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
+    else:
+        text = f'[[static]]\nkind = "segment"\na = [{-half}, 0.0]\nb = [{half}, 0.0]\n'
+    for x in (-half, half):
+        text += f'[[static]]\nkind = "segment"\na = [{x}, 0.0]\nb = [{x}, {top}]\n'
+    return text
+
+
+def grid_pile(cols: int, rows: int, radius: float, vertices: int, half: float, floor: str = "plane") -> str:
+    """cols × rows blobs dropped from a grid as wide as the box (2 half), segment walls"""
+    dx = 2 * half / cols
+    return (f'[scene]\nsleep = false\n[[blob]]\nname = "b"\ncenter = [{-half + dx / 2}, {radius + 0.05}]\n'
+            f"radius = {radius}\nvertices = {vertices}\ngrid = [{cols}, {rows}]\nspacing = [{dx}, {2.15 * radius}]\n"
+            + _segment_walls(half, rows * 2.15 * radius + 2.0, floor))
+
+
+def tilted_pile(cols: int, rows: int, radius: float, vertices: int, half: float, degrees: float,
+                friction: float) -> str:
+    """A grid dropped onto a plane floor tilted by `degrees`, between box walls, blobs and floor of `friction`"""
+    slope = math.tan(math.radians(degrees))
+    top = rows * 2.15 * radius + 2.0 + half * slope
+    return (f'[scene]\nsleep = false\n[[blob]]\nname = "b"\ncenter = [{-half + half / cols}, '
+            f"{radius + 0.1 + half * slope}]\nradius = {radius}\nvertices = {vertices}\nfriction = {friction}\n"
+            f"grid = [{cols}, {rows}]\nspacing = [{2 * half / cols}, {2.15 * radius}]\n"
+            f'[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\n'
+            f"normal = [{-math.sin(math.radians(degrees))}, {math.cos(math.radians(degrees))}]\nfriction = {friction}\n"
+            + "".join(f'[[static]]\nkind = "box"\ncenter = [{x}, {top / 2}]\nsize = [0.2, {top + 2.0}]\n'
+                      for x in (-half - 0.1, half + 0.1)))
+
+
+def random_pile(small: int, large: int, half: float, height: float, seed: int) -> str:
+    """Two sizes (r 0.3 m of 48 vertices, r 0.42 m of 32 and twice the mass) placed at random in a channel
+    of segments, then dropped"""
+    region = f"[{-half}, 0.0, {half}, {height}]"
+    return (f"[scene]\nsleep = false\nseed = {seed}\n"
+            f'[[blob]]\nname = "s"\nradius = 0.3\nvertices = 48\ncount = {small}\nregion = {region}\n'
+            f'[[blob]]\nname = "l"\nradius = 0.42\nvertices = 32\nmass = 2.0\ncount = {large}\nregion = {region}\n'
+            + _segment_walls(half, height + 2.0, "segment"))
+
+
+# Piles unlike the bench's own, so that a contact rule tuned to one pile cannot pass: boxes of segments and
+# of boxes, plane and segment floors, a tilted floor, radius 0.3-0.5 m, 24-48 vertices, one and two sizes,
+# grids and random starts, 48 to 1,000 blobs. (name: (scene text, seconds after which the pile should rest))
+LAYOUTS = {
+    "segment-box-60": (lambda: grid_pile(6, 10, 0.45, 24, 3.2, floor="segment"), 14.0),
+    "plane-60": (lambda: grid_pile(6, 10, 0.45, 24, 3.2), 14.0),
+    "offset-91": (lambda: grid_pile(7, 13, 0.4, 32, 3.3, floor="segment"), 16.0),
+    "small-80": (lambda: grid_pile(10, 8, 0.3, 48, 3.2), 14.0),
+    "tilted-48": (lambda: tilted_pile(8, 6, 0.4, 32, 3.4, 4.0, 0.7), 14.0),
+    "tilted-60": (lambda: tilted_pile(6, 10, 0.45, 24, 3.2, 4.0, 0.7), 14.0),
+    "random-90": (lambda: random_pile(45, 45, 2.6, 22.0, 1), 16.0),
+    "plane-300": (lambda: grid_pile(15, 20, 0.5, 32, 7.75), 18.0),
+    "plane-1000": (lambda: grid_pile(25, 40, 0.5, 32, 12.75), 25.0),
+}
+
+
 def sleep_setting(scene, sleep: bool):
     return replace(scene, settings=replace(scene.settings, sleep=sleep))
 
@@ -76,7 +136,18 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=14.0, help="simulated time after the drop (s)")
     ap.add_argument("--each-second-from", type=int, metavar="S",
                     help="also print the pile's fastest centre and vertex (sleeping off) for every second from S on")
+    ap.add_argument("--layout", nargs="+", choices=[*LAYOUTS, "all"], metavar="NAME",
+                    help=f"instead: the fastest centre and vertex (sleeping off) in the last second of each of these "
+                         f"piles, by its own time ({', '.join(LAYOUTS)}, or all)")
     args = ap.parse_args(argv)
+    if args.layout:
+        for name in LAYOUTS if "all" in args.layout else args.layout:
+            text, seconds = LAYOUTS[name]
+            model, state, params, per_second = _run(parse_scene(text(), name), seconds - 1.0)
+            centre, vertex = fastest(state, model, params, per_second)
+            print(f"{name}, second {seconds - 1:g}-{seconds:g}: fastest centre {1e3 * centre:.2f} mm/s, "
+                  f"fastest vertex {1e3 * vertex:.2f} mm/s")
+        return 0
     cases = [(f"pile of {args.blobs} blobs", parse_scene(scene_text(args.blobs, "piled"), "pile")),
              ("scenes/stack.toml", load_scene(ROOT / "scenes" / "stack.toml"))]
     for name, scene in cases:

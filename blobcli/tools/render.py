@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..colliders import COLLIDERS, default_pivot
-from ..io.h5md import TrajectoryError, open_trajectory, read_trajectory, stored_scene
+from ..io.h5md import TrajectoryError, open_trajectory, read_trajectory, reading, stored_scene
 from ..io.recording import blob_colors
 
 
@@ -56,7 +56,7 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = read_trajectory(h5_path)
-    with open_trajectory(h5_path) as f:
+    with open_trajectory(h5_path) as f, reading(h5_path):  # checked as every reader's (h5md.trajectory_problems)
         scene = stored_scene(f, h5_path)
         boxes = _boxes(f, len(t.step))
     picks = np.unique(np.linspace(0, len(t.step) - 1, frames).round().astype(int))

@@ -154,14 +154,36 @@ def stress_scenes(quick: bool):
         yield with_overrides(scene, duration=0.5) if quick else scene
 
 
-def stability_map(methods, out_dir: Path, quick: bool, scheduler=None, workers=0) -> dict:
-    """Pass/fail of a blob dropped on a floor and a bump, over dt × each method's stiffness, each step one substep
-    (max_substeps = 1: the method's own stability, without the steps' added substeps)."""
+def inputs() -> list[tuple[Path, str]]:
+    """The files `blobsim stress` reads: its scenes."""
+    return [(path, "a stress scene") for path in sorted(STRESS_DIR.glob("*.toml"))]
+
+
+def output_files(out_dir, methods, quick: bool) -> list[Path]:
+    """Every file `blobsim stress` writes in `out_dir` (each run's beside the lock it holds): the table, CSV and
+    map, each scene's run with each method, and the map's runs (removed once judged)."""
+    out_dir = Path(out_dir)
+    dts, knobs = map_axes(quick)
+    runs = [f"{scene.name}_{method}.h5" for scene in stress_scenes(quick) for method in methods]
+    runs += [f"map-{k}.h5" for k in range(sum(len(dts) * len(knobs[m][1]) for m in methods))]
+    return [*(out_dir / name for name in ("stress.csv", "stress.md", "stability_map.json", "stability_map.png")),
+            *(out_dir / f"{run}{lock}" for run in runs for lock in ("", ".lock"))]
+
+
+def map_axes(quick: bool) -> tuple[list, dict]:
+    """The stability map's dts and, per method, the stiffness it varies and its values."""
     dts = [1 / 240, 1 / 60] if quick else [1 / 240, 1 / 120, 1 / 60, 1 / 30, 1 / 15]
     knobs = {"kot": ("pressure", [1.0, 2.0] if quick else [0.7, 1.0, 1.5, 2.0, 3.0]),
              "xpbd": ("pressure", [1.0, 2.0] if quick else [0.7, 1.0, 1.5, 2.0, 3.0]),
              "gas": ("gas_pressure", [20.0, 500.0] if quick else [5.0, 20.0, 100.0, 500.0, 2000.0]),
              "springs": ("spring_stiffness", [2e3, 2e5] if quick else [5e2, 2e3, 2e4, 2e5, 2e6])}
+    return dts, knobs
+
+
+def stability_map(methods, out_dir: Path, quick: bool, scheduler=None, workers=0) -> dict:
+    """Pass/fail of a blob dropped on a floor and a bump, over dt × each method's stiffness, each step one substep
+    (max_substeps = 1: the method's own stability, without the steps' added substeps)."""
+    dts, knobs = map_axes(quick)
     cells, tasks = [], []
     for method in methods:
         knob, values = knobs[method]

@@ -81,6 +81,16 @@ def errors(run_path, ref_path) -> tuple[float, float, float]:
     return trajectory, area, perimeter
 
 
+def output_files(out_dir, scene, methods=METHODS) -> list[Path]:
+    """Every file `blobsim study` writes in `out_dir` (each run's beside the lock it holds): the chart and CSV,
+    and each method's runs, removed once compared."""
+    out_dir = Path(out_dir)
+    runs = [f"{method}_{name}.h5" for method in methods
+            for name in ("reference", "warm", *(f"dt{d}_s{s}_i{i}" for d, s, i in LADDER))]
+    return [out_dir / f"{scene.name}_study.csv", out_dir / f"{scene.name}_study.png",
+            *(out_dir / f"{run}{lock}" for run in runs for lock in ("", ".lock"))]
+
+
 def run_study(scene, methods=METHODS, out_dir="outputs/study", duration=None, scheduler=None,
               workers=0) -> list[Point]:
     """Each method's ladder against its own reference; one executor task per method (its runs

@@ -210,6 +210,14 @@ def _toml_text(doc: dict) -> str:
 
 # --- running ------------------------------------------------------------------------------
 
+def output_files(out: Path, sweep: Sweep) -> list[Path]:
+    """Every file `blobsim sweep` writes in `out`: each point's scene, its trajectory and the lock its run holds,
+    and the summary's table and chart."""
+    points = (out / f"point-{k:04d}{suffix}" for k in range(len(sweep.points)) for suffix in (".toml", ".h5",
+                                                                                              ".h5.lock"))
+    return [*points, out / "summary.csv", out / "summary.png"]
+
+
 def run_sweep(sweep: Sweep, out: Path, scheduler=None, workers=None, progress=False,
               announce=print) -> tuple[dict, bool]:
     """Write each point's scene, run the points that are not done (resuming interrupted ones)
