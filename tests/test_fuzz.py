@@ -241,3 +241,71 @@ def test_a_signal_in_the_first_fifth_of_a_second_exits_0_or_130_never_a_tracebac
     out, err = proc.communicate(timeout=120)
     assert proc.returncode in (0, 130) and "Traceback" not in err, (delay, signum, proc.returncode, err)
     assert not (d / "o.h5.partial").exists() and not (d / "o.h5.lock").exists()
+
+
+# Worlds that move: periodic and sheared boxes, random starts, kinematic and loaded walls, schedules of the
+# blobs' and the box's values, drives; sane shapes, extreme values. Every scene `check` accepts runs a few steps.
+extreme = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([0.0, 5e-324, 1e-300, 1e-6, 1e6, 1e20, 1e300, -1e300]))
+positive = st.one_of(st.floats(1e-3, 1e3), st.sampled_from([5e-324, 1e-300, 1e-9, 1e6, 1e20, 1e300]))
+pair = st.lists(extreme, min_size=2, max_size=2)
+moving_wall = st.one_of(
+    st.fixed_dictionaries({"kind": st.just("box"), "center": st.just([0.0, -0.6]), "size": st.just([2.0, 0.2]),
+                           "velocity": pair}, optional={"angular_velocity": extreme, "pivot": pair}),
+    st.fixed_dictionaries({"kind": st.just("box"), "center": st.just([0.0, 1.2]), "size": st.just([2.0, 0.2]),
+                           "load": positive, "mass": positive}, optional={"load_direction": pair}),
+    st.fixed_dictionaries({"kind": st.just("segment"), "a": st.just([-1.0, -0.5]), "b": st.just([1.0, -0.5]),
+                           "path": st.lists(st.tuples(st.floats(0.0, 1.0), extreme, extreme, extreme).map(list),
+                                            min_size=1, max_size=3).map(sorted)}),
+)
+world_schedule = st.one_of(
+    st.fixed_dictionaries({"key": st.sampled_from(["blob.b*.mass", "blob.b*.scale", "blob.b*.torque"]),
+                           "at": st.lists(st.tuples(st.floats(0.0, 1.0), extreme).map(list), min_size=1,
+                                          max_size=3).map(sorted)}),
+    st.fixed_dictionaries({"key": st.just("blob.b*.force"),
+                           "at": st.lists(st.tuples(st.floats(0.0, 1.0), extreme, extreme).map(list), min_size=1,
+                                          max_size=3).map(sorted)}),
+    st.fixed_dictionaries({"key": st.just("scene.shear"),
+                           "at": st.lists(st.tuples(st.floats(0.0, 1.0), extreme).map(list), min_size=1,
+                                          max_size=3).map(sorted)}),
+    st.fixed_dictionaries({"key": st.just("scene.periodic"),
+                           "at": st.lists(st.tuples(st.floats(0.0, 1.0), positive, positive).map(list), min_size=1,
+                                          max_size=3).map(sorted)}),
+)
+worlds = st.fixed_dictionaries({
+    "scene": st.fixed_dictionaries({"steps": st.integers(1, 20)},
+                                   optional={"periodic": st.lists(positive, min_size=2, max_size=2),
+                                             "gravity": pair, "seed": st.integers(0, 3)}),
+    "blob": st.lists(st.fixed_dictionaries({"name": st.just("b"), "radius": st.floats(0.05, 0.4),
+                                            "vertices": st.integers(3, 24)},
+                                           optional={"count": st.integers(1, 12), "mass": positive,
+                                                     "velocity": pair, "force": pair, "torque": extreme}),
+                     min_size=1, max_size=1),
+    "static": st.lists(moving_wall, max_size=2),
+    "schedule": st.lists(world_schedule, max_size=2),
+})
+
+
+@pytest.mark.slow
+@FUZZ
+@given(doc=worlds)
+def test_moving_worlds_fuzzer_exit_0_1_2_and_a_readable_file(tmp_path_factory, doc):
+    """What `check` accepts runs: exit 0 (complete, every position finite) or 1 (stopped: a readable file that
+    says it is not complete), never a crash, a traceback or an internal error; what it refuses writes nothing."""
+    d = tmp_path_factory.mktemp("worlds")
+    path = d / "s.toml"
+    text = scene_text(doc)
+    if "count" not in doc["blob"][0]:  # one blob at the origin, or `count` copies placed at random
+        text = text.replace('name = "b"', 'name = "b"\ncenter = [0.0, 0.0]')
+    elif "periodic" not in doc["scene"]:
+        text = text.replace('name = "b"', 'name = "b"\nregion = [-3.0, -0.3, 3.0, 6.0]')
+    path.write_text(text)
+    out = d / "o.h5"
+    code, _, err = cli("run", path, "-o", out, "-q")
+    assert code in (0, 1, 2) and "Traceback" not in err and "internal error" not in err, (code, err, text)
+    if code == 2:
+        assert not list(d.glob("o.h5*")), text
+        return
+    with h5py.File(out) as f:
+        assert bool(f.attrs["complete"]) == (code == 0), (code, err, text)
+        if code == 0:
+            assert np.isfinite(f["particles/blobs/position/value"][-1]).all(), text
