@@ -230,3 +230,13 @@ def test_a_stopped_jam_keeps_every_packing_it_brought_to_rest(tmp_path):
         assert not f.attrs["complete"] and "signal" in f.attrs["stopped"]
         assert len(f["observables/packing_fraction/value"]) >= 2
     assert not (out / "small" / "seed-1.h5").exists()  # the seeds after it are not started
+
+
+def test_a_fit_that_cannot_be_made_says_so_in_words():
+    """One seed with fewer than three points past onset has no exponent: the summary says so, not `^nan`."""
+    from blobcli.tools.jam import report
+    mean = {"phi_j": 0.83, "z_j": 4.0, "z_j_all": 4.2, "pressure": 1e-3, "reduced_pressure": 2e-6, "rattlers": 3.0,
+            "beta": math.nan, "phi_j_sem": None, "z_j_sem": None}
+    line = report({"seeds": [{}], "mean": mean})
+    assert "nan" not in line and "no fit of z - z_J" in line
+    assert "^0.50" in report({"seeds": [{}], "mean": {**mean, "beta": 0.5}})
