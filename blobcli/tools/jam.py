@@ -192,12 +192,12 @@ def report(figures: dict) -> str:
         return "no seed jammed"
     k = len(figures["seeds"])
     pm = "" if k < 2 else " ± {:.4f}"
+    fit = (f"z - z_J ~ (phi - phi_J)^{m['beta']:.2f}" if math.isfinite(m["beta"])
+           else "no fit of z - z_J against phi - phi_J (fewer than 3 points past onset with z rising)")
     return (f"phi_J = {m['phi_j']:.4f}{pm.format(m['phi_j_sem'])}, "
             f"z_J = {m['z_j']:.3f}{pm.format(m['z_j_sem'])} (rattlers removed; {m['z_j_all']:.3f} with them), "
             f"pressure {m['pressure']:.3g} N/m (p alpha = {m['reduced_pressure']:.2e}), "
-            f"{m['rattlers']:.1f} rattlers, " + (f"z - z_J ~ (phi - phi_J)^{m['beta']:.2f}; " if math.isfinite(m['beta'])
-                                                  else "no fit of z - z_J against phi - phi_J (fewer than 3 points "
-                                                       "past onset with z rising); ") +
+            f"{m['rattlers']:.1f} rattlers, {fit}; "
             f"{k} seed{'s' if k > 1 else ''}" + (" (mean ± standard error)" if k > 1 else ""))
 
 

@@ -1,7 +1,8 @@
 """`python -m blobcli.tools.piles`: do piles come to rest, and what does a sleeping pile cost?
 
 Prints, for a pile of blobs dropped into a box (bench.scene_text, "piled") and for the shipped
-scenes/stack.toml (or, with `--layout NAME ...`, for piles unlike the bench's own: LAYOUTS): the fastest blob centre and the fastest vertex over the last second before
+scenes/stack.toml (or, with `--layout NAME ...`, for piles unlike the bench's own: LAYOUTS): the
+fastest blob centre and the fastest vertex over the last second before
 `--seconds` with sleeping off, and with sleeping on (the default) the share of blobs asleep and
 the wall time of that last second against the same second awake; with `--each-second-from S`,
 the pile's fastest centre and vertex (sleeping off) in every second from S to `--seconds`. Figures,
