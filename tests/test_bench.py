@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -10,6 +11,12 @@ from pathlib import Path
 import pytest
 
 import blobcli
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCHMARKS = ROOT / "benchmarks"
+# a figure as the page writes it: 0.973, 1,000, 26.2; not the digits of e0674ec, x86_64 or 10k
+NUMBER = re.compile(r"(?<![\w./])(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?![\w/])")
+DATA_LINK = re.compile(r"\]\((\.\./benchmarks/[^)]+\.json)\)")
 
 
 def _without_numba(tmp_path) -> dict:
@@ -102,3 +109,70 @@ def test_ab_step_builds_the_other_trees_core_in_its_copy(tmp_path):
     assert "same bits after 3 steps: True" in done.stdout
     assert "this / other:" in done.stdout
     assert not list((other / "blobcli" / "core").glob("_blobcore*"))
+
+
+def _tables(lines: list[str]):
+    """Each markdown table of a page: (its first line's number, its rows but the |---| one, the line
+    after it that starts with "Data:", or None)."""
+    i = 0
+    while i < len(lines):
+        if not lines[i].startswith("|"):
+            i += 1
+            continue
+        j = i
+        while j < len(lines) and lines[j].startswith("|"):
+            j += 1
+        rows = [row for row in lines[i:j] if not set(row) <= set("|-: ")]
+        data = next((row for row in lines[j:j + 3] if row.startswith("Data:")), None)
+        yield i + 1, rows, data
+        i = j
+
+
+def _numbers(value) -> set[float]:
+    """Every number a JSON value holds (not its keys, not booleans, not digits inside strings)."""
+    if isinstance(value, bool):
+        return set()
+    if isinstance(value, (int, float)):
+        return {float(value)}
+    if isinstance(value, dict):
+        value = list(value.values())
+    if isinstance(value, list):
+        return set().union(*(_numbers(v) for v in value))
+    return set()
+
+
+def test_the_performance_page_s_tables_are_their_data_files():
+    """docs/performance.md cannot drift from its data: every table names its data file on a "Data:" line
+    just below it, and every number in the table (header and rows) is a number in that file."""
+    page = ROOT / "docs" / "performance.md"
+    lines = page.read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 200, "docs/performance.md is a page, not a log: at most 200 lines"
+    tables = list(_tables(lines))
+    assert tables
+    for line, rows, data in tables:
+        assert data, f"docs/performance.md:{line}: a table without a 'Data:' line naming its benchmarks/ file"
+        link = DATA_LINK.search(data)
+        assert link, f"docs/performance.md:{line}: its Data line links no ../benchmarks/....json: {data}"
+        path = (page.parent / link.group(1)).resolve()
+        known = _numbers(json.loads(path.read_text(encoding="utf-8")))
+        for row in rows:
+            for figure in NUMBER.findall(row):
+                assert float(figure.replace(",", "")) in known, (
+                    f"docs/performance.md:{line}: {figure} is not in {path.relative_to(ROOT)} (row: {row})")
+
+
+def test_every_benchmark_data_file_says_where_when_and_how():
+    """benchmarks/<machine>/<date>[-<what>].json: the machine its folder, the date its name's start, and the
+    command that measured it; a `blobsim bench --json` result keeps bench's own keys for its rows."""
+    assert (BENCHMARKS / "README.md").is_file()
+    files = sorted(BENCHMARKS.glob("*/*.json"))
+    assert files
+    for path in files:
+        name = path.relative_to(ROOT)
+        data = json.loads(path.read_text(encoding="utf-8"))
+        assert re.fullmatch(r"\d{4}-\d{2}-\d{2}(-[\w.-]+)?", path.stem), f"{name}: not <date>[-<what>].json"
+        assert data.get("host") == path.parent.name, f"{name}: host should be {path.parent.name!r}"
+        assert data.get("date") == path.stem[:10], f"{name}: date should be {path.stem[:10]!r}"
+        assert isinstance(data.get("command"), str) and data["command"], f"{name}: no command"
+        for row in data.get("rows", []) if "peer" in data else []:
+            assert {"blobs", "layout", "vertices", "ms_per_step", "ns_per_vertex_substep"} <= set(row), name

@@ -83,7 +83,7 @@ def test_a_frictionless_head_on_pair_stays_its_own_mirror_image_about_its_axis()
     """Nothing holds a frictionless pair on its axis but symmetry: any sideways push at the impact is
     kept as a slide. So each blob must stay its own mirror image about the axis (y -> -y: vertex i of
     the first blob onto vertex -i, vertex j of the second onto 30 - j) to round-off, through the impact
-    and after. Contacts solved one after another broke it: 21 mm off the axis at 0.8 s (dev, 2026-11-26)."""
+    and after. Contacts solved one after another break it: 21 mm off the axis at 0.8 s."""
     sc = head_on(friction=0.0)
     model, state = build(sc)
     params = build_params(sc)

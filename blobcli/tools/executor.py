@@ -21,9 +21,9 @@ CLOSE_SECONDS = 3  # a local cluster's workers get this long to stop in order (a
 
 
 def _quiet_workers() -> dict:
-    """Dask settings that leave a local cluster's cores to the runs (measured on the jam of
-    scenes/jamming/bidisperse.toml, two workers on two cores, 2026-11-27: 11.0 and 10.5 ms a step
-    against 8.3 and 8.2 in two plain processes; 8.3 and 8.9 with these):
+    """Dask settings that leave a local cluster's cores to the runs (the jam of
+    scenes/jamming/bidisperse.toml, two workers on two cores: 11.0 and 10.5 ms a step against 8.3 and
+    8.2 in two plain processes; 8.3 and 8.9 with these):
     - no MALLOC_TRIM_THRESHOLD_ for the workers (Dask sets 64 KiB to hand freed memory back to the
       system). Any value set fixes glibc's mmap threshold at 128 KiB, so each of the step's
       temporaries that size or larger came from new pages: 17,000 page faults a second, a tenth
