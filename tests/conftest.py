@@ -61,6 +61,13 @@ DRIVEN_SLOPE = 0.1  # m/s: the least speed a ring on a 10° slope climbs or roll
 #                     or below m g R sin θ (measured 0.54 and 0.66 m/s over seconds 2-6)
 GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob on a fixed floor over 3 s
 #                  (issue "Worlds that move"; measured 9.4e-14: round-off)
+WALL_HOLD = 1e-3  # m: how far a sticky blob whose adhesion holds moves on a wall over 5 s (measured 0.31 mm at
+#                   300 N/m, the centre still settling; 7.5 m at 100 N/m, which does not hold)
+FLAT_TOP_HOLD = (0.3, 0.5)  # the load a flat-topped blob hanging by its face lets go at, over adhesion × the face's
+#                             length: it peels from the corners (measured 0.397-0.405 at 10-40 N/m; docs/physics.md)
+RECORDED_PULL = 0.01  # relative: a sticky ceiling's recorded force against the weight hanging from it (measured 2e-4)
+NOT_PULLED = 1e-9  # m: how far a blob at rest within range of a sticky surface, not touching it, moves in 1 s without
+#                    gravity (measured 2.5e-13: round-off, as a clean one's 1.5e-13; a pull would close the 5 mm gap)
 
 
 def pytest_configure(config):

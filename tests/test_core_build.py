@@ -40,3 +40,10 @@ def test_without_a_compiler_the_build_says_what_to_install(monkeypatch):
 def test_the_api_headers_parse_and_declare_the_step():
     text = core_build.cdef_text()
     assert "bc_advance" in text and "#include" not in text
+
+
+def test_the_stage_clock_has_a_slot_for_every_stage_the_step_names():
+    """bc_advance's clock (step.c's LAP_ slots) is a BC_STAGE_COUNT array that pipeline.STAGES names in order."""
+    from blobcli.core import load
+    from blobcli.sim.pipeline import STAGES
+    assert load()[1].BC_STAGE_COUNT == len(STAGES)

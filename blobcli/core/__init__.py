@@ -81,7 +81,7 @@ class Views:
         m.blob_count, m.vertex_count, m.spring_count = len(a.offsets) - 1, int(a.offsets[-1]), len(a.spring_rest)
         for name in ("offsets", "blob_of", "inv_mass", "rest_length", "rest_perimeter", "target_area", "compliance",
                      "material", "orient", "area_compliance", "gas_pressure", "spring_pairs", "spring_rest",
-                     "spring_compliance", "driving"):
+                     "spring_compliance", "driving", "adhesion", "static_adhesion"):
             setattr(m, name, p(getattr(a, name)))
         for k, (geom, shape_offsets, material, index) in enumerate(a.statics):
             s = m.statics[k]

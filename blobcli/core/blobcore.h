@@ -59,6 +59,8 @@ typedef struct bcModel {
     const double *spring_compliance; /* (B,) m/N */
     const double *driving;           /* (B, 3): driving force F_x, F_y (N) at the centre of mass, torque τ (N m,
                                       * counter-clockwise): driving.h; all 0: not driven */
+    const double *adhesion;          /* (B,) N/m: what holds a blob, per metre of contact (adhesion.c); 0: not sticky */
+    const double *static_adhesion;   /* (S colliders,) N/m: each collider's, by its place among the [[static]] tables */
     bcStaticSet statics[BC_SOLVER_KINDS];
     bcWalls walls;
 } bcModel;

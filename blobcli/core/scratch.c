@@ -125,7 +125,9 @@ bcScratch *bc_scratch_new(const bcModel *m) {
     w->wall_normal = calloc((size_t)(2 * B + 1), sizeof(double));
     w->wall_impulse = calloc((size_t)(2 * B + 1), sizeof(double));
     w->wall_deepest = calloc((size_t)(B + 1), sizeof(int64_t));
-    if (!(w->wall_share && w->wall_normal && w->wall_impulse && w->wall_deepest)) {
+    w->wall_kept = calloc((size_t)(2 * m->vertex_count + 1), sizeof(double));
+    w->wall_side = calloc((size_t)(m->walls.count * B + 1), sizeof(uint8_t));
+    if (!(w->wall_share && w->wall_normal && w->wall_impulse && w->wall_deepest && w->wall_kept && w->wall_side)) {
         bc_scratch_free(w);
         return NULL;
     }
@@ -204,5 +206,7 @@ void bc_scratch_free(bcScratch *w) {
     free(w->wall_normal);
     free(w->wall_impulse);
     free(w->wall_deepest);
+    free(w->wall_kept);
+    free(w->wall_side);
     free(w);
 }

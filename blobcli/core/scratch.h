@@ -88,8 +88,10 @@ struct bcScratch {
     /* statics.c, walls.c */
     double *wall_share;     /* (B) bc_react_loaded_walls: s_b, the part of blob b's impulse a loaded wall takes ... */
     double *wall_normal;    /* (B, 2) ... n̄_b, its contacts' depth-weighted normal on the wall ... */
-    double *wall_impulse;   /* (B, 2) ... s_b J_b ... */
+    double *wall_impulse;   /* (B, 2) ... J_b, the velocity stages' impulse on blob b ... */
     int64_t *wall_deepest;  /* (B) ... and its deepest vertex on the wall (-1: none) */
+    double *wall_kept;      /* (2, N) bc_keep_impact_positions: the positions before bc_stop_impacts */
+    uint8_t *wall_side;     /* (S, B) bc_note_wall_sides: which side of loaded wall k blob b is on at the step's start */
 };
 
 #endif

@@ -3,14 +3,15 @@
  * Each stage is a function over the model, the state and the scratch (blobcore.h, one concept a file).
  * Python is entered only between calls (to record a frame, update the progress bar, see a Ctrl-C), never
  * per substep. A stage a scene has nothing for is not run: run-time flags (one blob: no blob contacts; no
- * colliders; the area method; sleeping; moving or loaded walls; a periodic box) take the place of builds
- * per configuration, and cost a predicted branch each.
+ * colliders; nothing sticky: no adhesion; the area method; sleeping; moving or loaded walls; a periodic box) take
+ * the place of builds per configuration, and cost a predicted branch each.
  */
 #define _POSIX_C_SOURCE 199309L /* clock_gettime under -std=c11 */
 #include <math.h>
 #include <stdbool.h>
 #include <time.h>
 
+#include "adhesion.h"
 #include "area.h"
 #include "broad_phase.h"
 #include "contact_solver.h"
@@ -19,6 +20,7 @@
 #include "narrow_phase.h"
 #include "perimeter.h"
 #include "restitution.h"
+#include "ring.h"
 #include "scratch.h"
 #include "self_contact.h"
 #include "sleep.h"
@@ -32,7 +34,7 @@ enum { KOT, XPBD, GAS, SPRINGS }; /* the area methods, in the order of scene/sch
 enum {
     LAP_WALLS, LAP_DAMPING, LAP_PREDICT, LAP_BROAD_PHASE, LAP_PERIMETER, LAP_AREA, LAP_BLOB_DETECT, LAP_BLOB_RESOLVE,
     LAP_SELF_CONTACT, LAP_STATICS, LAP_VELOCITIES, LAP_RESTITUTION, LAP_BLOB_VELOCITIES, LAP_BLOB_RESTITUTION,
-    LAP_SLEEP
+    LAP_SLEEP, LAP_ADHESION
 };
 
 static double now(void) {
@@ -55,9 +57,10 @@ static int64_t zoned_total(const bcContext *ctx) {
     return total;
 }
 
-/* One iteration of the constraints: perimeter, self-contacts, area, blob contacts, statics. */
+/* One iteration of the constraints: perimeter, self-contacts, area, adhesion (the last iteration, where something is
+ * sticky), blob contacts, statics. */
 static double iterate(const bcContext *ctx, int64_t it, int64_t self_found, int first_detection, double reach_time,
-                      double g, double h, double *clock, double t) {
+                      bool sticky, double g, double h, double *clock, double t) {
     const bcModel *m = ctx->m;
     const bcSettings *c = ctx->c;
     bool collides = m->blob_count > 1, reverse = it % 2 == 1;
@@ -79,6 +82,14 @@ static double iterate(const bcContext *ctx, int64_t it, int64_t self_found, int 
     case SPRINGS: bc_area_springs(ctx, h); break;
     }
     t = lap(clock, LAP_AREA, t);
+    /* sticky blobs and colliders hold what touches them against the substep's separation, up to adhesion × length
+     * as force: once a substep, after the area (which would otherwise undo part of the hold in the next iteration)
+     * and before the contacts and the statics, which push back what a press puts inside them and count it as normal
+     * load for friction (adhesion.c) */
+    if (sticky && it == c->iterations - 1) {
+        bc_adhere(ctx, h);
+        t = lap(clock, LAP_ADHESION, t);
+    }
     if (collides && ctx->w->pair_count > 0) { /* a vertex inside another blob: pushed out, with friction */
         /* contacts are found once per step, and again for blobs that went past their margin */
         bc_keep_blob_contacts(ctx, first_detection, reach_time, g);
@@ -88,8 +99,13 @@ static double iterate(const bcContext *ctx, int64_t it, int64_t self_found, int 
     }
     if (statics) {
         bc_collide_statics(ctx, h);
+        if (c->loaded) bc_collide_loaded_corners(ctx, h); /* a loaded wall's corners push the rings' edges */
+        if (it == 0) { /* a fast impact stops the whole blob, so its ring does not fold ... */
+            if (c->loaded) bc_keep_impact_positions(ctx);
+            bc_stop_impacts(ctx);
+            if (c->loaded) bc_share_impact_stops(ctx); /* ... a loaded wall's impact is its push too */
+        }
         if (c->loaded) bc_yield_loaded_walls(ctx); /* each loaded wall takes its share of its pushes */
-        if (it == 0) bc_stop_impacts(ctx); /* a fast impact stops the whole blob, so its ring does not fold */
         t = lap(clock, LAP_STATICS, t);
         /* again after the statics, holding the vertices they pushed (the statics keep the last word) */
         if (self_found > 0) {
@@ -119,14 +135,17 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
     double t = clock != NULL ? now() : 0.0;
     double g = sqrt(c->gx * c->gx + c->gy * c->gy);
     bool movers = c->moving && bc_any_moves(ctx);
+    bool sticky = bc_any_adhesion(ctx) != 0; /* (a schedule changes adhesion only between calls) */
     for (int64_t n = 0; n < steps; n++) {
         if (awake_blobs == 0 && !movers) { /* everything asleep: nothing moves, and only a mover could wake it */
             s->steps_done[0] += 1;
             continue;
         }
         int first_detection = 1; /* blob contacts are found once per step (and again when a blob outgrows them) */
+        if (c->loaded) bc_note_wall_sides(ctx); /* which side of each loaded wall each blob is on */
         /* the scene's substeps, or more where a blob would move or sag too far in one */
         int64_t substeps = bc_substeps_for(ctx, g);
+        if (c->loaded) substeps = bc_imax(substeps, bc_loaded_substeps(ctx)); /* and as a loaded wall's load dents */
         double h = c->dt / (double)substeps;
         double damping = exp(-c->damping * h);
         double rest_speed = bc_rest_speed(g, h); /* slower impacts never bounce (restitution.c) */
@@ -169,7 +188,8 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
                 t = lap(clock, LAP_BROAD_PHASE, t);
             }
             for (int64_t it = 0; it < c->iterations; it++) {
-                t = iterate(ctx, it, self_found, first_detection, (double)(substeps - sub) * h, g, h, clock, t);
+                t = iterate(ctx, it, self_found, first_detection, (double)(substeps - sub) * h, sticky, g, h, clock,
+                            t);
                 if (collides && ctx->w->pair_count > 0) first_detection = 0;
             }
             /* where the constraints left two edges of a ring crossed, their ends move rigidly for the substep */
@@ -181,7 +201,10 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
                  * is put back now; left there, the next substep would take the far side of a segment (or of a
                  * moving wall's line) for the side it belongs to, and keep it there */
                 bc_collide_statics(ctx, h);
-                if (c->loaded) bc_yield_loaded_walls(ctx);
+                if (c->loaded) {
+                    bc_collide_loaded_corners(ctx, h);
+                    bc_yield_loaded_walls(ctx);
+                }
                 t = lap(clock, LAP_STATICS, t);
             }
             if (c->loaded) {
@@ -230,6 +253,16 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
             bad = bc_first_runaway_wall(s->static_pose, m->walls.count, runaway);
             if (bad >= 0) {
                 stop = (bcStop){n, BC_RUNAWAY_WALL, bad};
+                goto done;
+            }
+            bad = c->loaded ? bc_find_passed_blob(ctx) : -1; /* a blob a loaded wall passed through */
+            if (bad >= 0) {
+                stop = (bcStop){n, BC_PASSED_BLOB, bad};
+                goto done;
+            }
+            bad = bc_first_broken_blob(ctx); /* a blob a moving collider turned inside out or crushed */
+            if (bad >= 0) {
+                stop = (bcStop){n, BC_BROKEN_BLOB, bad};
                 goto done;
             }
         }

@@ -36,6 +36,30 @@ void bc_record_contact_impulses(const bcContext *ctx, double h);
 /* The velocity-level impulses of the substep's static contacts act on a loaded wall too, shared as its pushes */
 void bc_react_loaded_walls(const bcContext *ctx, double h);
 
+/* Each loaded polygon's corner (a loaded segment's end) inside a ring pushes the ring's edge nearest it off it, as the
+ * kernels push vertices (recorded for the wall's share and force) */
+void bc_collide_loaded_corners(const bcContext *ctx, double h);
+
+/* Note the positions before bc_stop_impacts ... */
+void bc_keep_impact_positions(const bcContext *ctx);
+
+/* ... and record what it moved of a blob whose deepest push was a loaded wall's as that wall's pushes */
+void bc_share_impact_stops(const bcContext *ctx);
+
+/* The substeps the loaded walls' loads need at the step's start: at least the scene's, at most its most */
+int64_t bc_loaded_substeps(const bcContext *ctx);
+
+/* At a step's start: which side of each loaded wall each awake blob beside it is wholly on (scratch wall_side) ... */
+void bc_note_wall_sides(const bcContext *ctx);
+
+/* ... and at its end, b × S + k for the first blob b wholly on the other side of loaded wall k now, or with one of
+ * its corners deep inside, or -1 */
+int64_t bc_find_passed_blob(const bcContext *ctx);
+
+/* b × S + k: the first awake blob b beside a moving collider k that is inside out, or crushed (its area off by
+ * more than 10%), or -1 */
+int64_t bc_first_broken_blob(const bcContext *ctx);
+
 /* The step's pushes as impulses and moments on each collider (s->static_impulse); clear the vertices' records */
 void bc_account_contacts(const bcContext *ctx, double h);
 

@@ -35,10 +35,11 @@ MIN_MASS = 1e-6  # kg: a blob's or a loaded wall's mass (its inverse, 1 / m per 
 MAX_LOAD_ACCELERATION = 1e6  # m/s²: a loaded wall's load / mass (about 10⁵ g)
 MAX_SHEAR = 1000.0  # |γ| of a periodic box's shear keyframes: the images' shift γ L_y stays a number far from overflow
 MAX_BOX_CELLS = 4_000_000  # a periodic box's broad-phase cells: (L_x / c)(L_y / c), c = 2.5 × the largest radius
-STATIC_MATERIAL_KEYS = ("friction", "static_friction", "restitution", "surface_velocity")  # any collider kind
+STATIC_MATERIAL_KEYS = ("friction", "static_friction", "restitution", "surface_velocity", "adhesion")  # any kind
 STATIC_MOTION_KEYS = ("velocity", "angular_velocity", "pivot", "path", "load", "load_direction", "mass")  # any kind
 MAX_KEYFRAMES = 10_000  # rows of a path or a schedule
-SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution", "force", "torque")
+SCHEDULED_BLOB_KEYS = ("mass", "pressure", "scale", "friction", "static_friction", "restitution", "force", "torque",
+                       "adhesion")
 
 METHODS = ("kot", "xpbd", "gas", "springs")  # area methods, in blobcli/core/area.c (in this order)
 
@@ -191,6 +192,10 @@ class BlobDef:
                                  "default: `friction` when only that is given, else 0.6", "float", nonnegative)
     restitution: float = key(0.0, "", "restitution e in [0, 1]: the blob's centre leaves a contact at e × its "
                              "impact speed, never faster (rebound about e² of the drop)", "float", unit_interval)
+    adhesion: float = key(0.0, "N/m", "sticky: what it touches (a collider, another blob) holds it with up to this "
+                          "force per metre of contact, against separation (a larger load peels it off); combined "
+                          "with the other side's as the max; a schedule (blob.NAME.adhesion) makes it stick and let "
+                          "go on command (docs/physics.md, 'Adhesion')", "float", nonnegative)
     grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", between(1, MAX_BLOBS))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
     count: int = key(1, "", "place this many copies at random, without overlap, in `region` (from [scene] seed; "
@@ -230,6 +235,8 @@ class StaticDef:
                                   "of the solid (a floor carries them toward +x, a circle's wall with blobs outside "
                                   "turns clockwise, a drum's (inside = true) counter-clockwise: u = ω R)", "float",
                                   between(-MAX_SURFACE_SPEED, MAX_SURFACE_SPEED))
+    adhesion: float = key(0.0, "N/m", "a sticky collider: holds a blob that touches it with up to this force per "
+                          "metre of contact (combined with the blob's as the max)", "float", nonnegative)
     velocity: tuple | None = key(None, "m/s", "moves at this constant velocity (with `angular_velocity`: a "
                                  "kinematic wall; default: fixed)", "vec2",
                                  lambda v: None if math.hypot(*v) <= MAX_SURFACE_SPEED
@@ -746,7 +753,8 @@ def schedule_targets(s: ScheduleDef, names: list[str]) -> list[int]:
 
 
 SCHEDULE_CHECKS = {"mass": mass_value, "pressure": positive, "scale": positive, "friction": nonnegative,
-                   "static_friction": nonnegative, "restitution": unit_interval}  # force, torque: _check_driving
+                   "static_friction": nonnegative, "restitution": unit_interval,
+                   "adhesion": nonnegative}  # force, torque: _check_driving
 
 
 def _check_schedule(s: ScheduleDef, names, path, problems: _Problems, periodic: bool) -> bool:

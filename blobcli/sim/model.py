@@ -106,6 +106,8 @@ class ModelArrays(NamedTuple):
     spring_rest: np.ndarray
     spring_compliance: np.ndarray
     driving: np.ndarray
+    adhesion: np.ndarray
+    static_adhesion: np.ndarray
     statics: tuple  # one per SOLVERS kind: its StaticSet's (geom, shape_offsets, material, index)
     walls: Walls
 
@@ -135,6 +137,8 @@ class Model:
     spring_compliance: np.ndarray  # (B,) m/N, ... and compliance, 1 / stiffness
     driving: np.ndarray  # (B, 3): each blob's driving force F_x, F_y (N) through its centre of mass and torque τ
     #                      (N m, counter-clockwise) about it (core/driving.h); 0: not driven
+    adhesion: np.ndarray  # (B,) N/m: how hard each blob holds what it touches, per metre of contact (core/adhesion.c)
+    static_adhesion: np.ndarray  # (S,) N/m: each collider's, by its place among the scene's [[static]] tables
 
     @cached_property
     def arrays(self) -> ModelArrays:
@@ -144,8 +148,8 @@ class Model:
         return ModelArrays(self.offsets, self.blob_of, self.inv_mass, self.rest_length, self.rest_perimeter,
                            self.target_area,
                            self.compliance, self.material, self.orient, self.area_compliance, self.gas_pressure,
-                           self.spring_pairs, self.spring_rest, self.spring_compliance, self.driving,
-                           tuple(kinds.get(kind, none) for kind in SOLVERS), self.walls)
+                           self.spring_pairs, self.spring_rest, self.spring_compliance, self.driving, self.adhesion,
+                           self.static_adhesion, tuple(kinds.get(kind, none) for kind in SOLVERS), self.walls)
 
     @property
     def moving(self) -> bool:
@@ -318,7 +322,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         area = signed_area(base)
         per_blob.append((counts, b.mass, area, b.pressure, b.compliance,
                          (b.static_friction, b.friction, b.restitution), b.area_compliance, b.gas_pressure,
-                         b.spring_stiffness, (*b.force, b.torque)))
+                         b.spring_stiffness, (*b.force, b.torque), b.adhesion))
 
     counts = np.concatenate([p[0] for p in per_blob])
     offsets = np.zeros(len(counts) + 1, dtype=np.int64)
@@ -330,7 +334,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         return np.concatenate([np.full(len(p[0]), p[k], dtype=np.float64) for p in per_blob])
 
     mass, rest_area, pressure, compliance = per(1), per(2), per(3), per(4)
-    area_compliance, gas_pressure, spring_stiffness = per(6), per(7), per(8)
+    area_compliance, gas_pressure, spring_stiffness, adhesion = per(6), per(7), per(8), per(10)
     material = np.concatenate([np.tile(np.array(p[5], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
     driving = np.concatenate([np.tile(np.array(p[9], dtype=np.float64), (len(p[0]), 1)) for p in per_blob])
     blob_of = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
@@ -347,7 +351,8 @@ def build(scene: Scene) -> tuple[Model, State]:
                   statics=statics, walls=walls,
                   orient=np.sign(rest_area), area_compliance=area_compliance, gas_pressure=gas_pressure,
                   spring_pairs=springs, spring_rest=np.hypot(*(pos[springs[:, 1]] - pos[springs[:, 0]]).T),
-                  spring_compliance=1.0 / spring_stiffness, driving=driving)
+                  spring_compliance=1.0 / spring_stiffness, driving=driving, adhesion=adhesion,
+                  static_adhesion=np.array([s.adhesion for s in scene.statics], dtype=np.float64))
     n, blobs = len(pos), len(counts)
     state = State(position=np.ascontiguousarray(pos.T), velocity=np.ascontiguousarray(vel.T),
                   impact=no_impact(blobs), pair_key=np.zeros(PAIRS_PER_BLOB * blobs, np.int64),

@@ -1,7 +1,8 @@
 """The step of the simulation, as Python calls it: the compiled core's driver (blobcli/core/step.c).
 
 The step is a list of named stages (step.c reads top to bottom: predict, then per iteration the perimeter,
-the self-contacts, the area, the blob contacts and the colliders, then the velocities and the bounces),
+the self-contacts, the area, the adhesion (the last iteration, where something is sticky), the blob contacts and
+the colliders, then the velocities and the bounces),
 each a C function over flat arrays (model.State: structure of arrays). `advance` fills the C views over a
 run's arrays once (blobcli.core.Views) and runs as many steps as it is asked in one call: Python is entered
 only between calls (to record a frame, update the progress bar, see a Ctrl-C), never per substep. One
@@ -19,10 +20,11 @@ import numpy as np
 from ..colliders import SOLVERS
 from ..scene.schema import MAX_STEP_WORK, METHODS
 from .measure import RUNAWAY
-from .model import PAIRS_PER_BLOB, Model, Params, SimulationError, State
+from .model import LOADED, PAIRS_PER_BLOB, Model, Params, SimulationError, State
 
 STAGES = ("walls", "damping", "predict", "broad phase", "perimeter", "area", "blob detect", "blob resolve",
-          "self contact", "statics", "velocities", "restitution", "blob velocities", "blob restitution", "sleep")
+          "self contact", "statics", "velocities", "restitution", "blob velocities", "blob restitution", "sleep",
+          "adhesion")
 
 
 class Configuration(NamedTuple):
@@ -126,8 +128,9 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
             step_settings: StepSettings | None = None, arrays=None) -> int:
     """Advance the state by up to `steps` steps of params.dt (each in `substeps` substeps or more, up to
     `max_substeps`: blobcli/core/integrate.c), in one call of the compiled step. Returns the steps done:
-    fewer than asked only when a step left a vertex non-finite or beyond RUNAWAY. Raises SimulationError
-    when far more blob pairs overlap than the step holds.
+    fewer than asked only when a step left a vertex (or a collider's pose) non-finite or beyond RUNAWAY. Raises
+    SimulationError when far more blob pairs overlap than the step holds, or when a step left a blob inside out or
+    crushed beside a moving collider (core/walls.c: bc_first_broken_blob).
 
     With `clock` (a dict), each stage's wall time is added to clock[stage name], in seconds:
     `blobsim bench` profiles the real step this way. `step_settings` (from `settings`) saves
@@ -137,7 +140,7 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
     ffi, lib = load()
     step_settings = step_settings or settings(model, params)
     views = _views(state, model.arrays if arrays is None else arrays, step_settings, model.parallel)
-    timer = np.zeros(len(STAGES)) if clock is not None else None
+    timer = np.zeros(lib.BC_STAGE_COUNT) if clock is not None else None  # the clock's slots, STAGES in order
     stop = lib.bc_advance(views.context, steps, RUNAWAY,
                           ffi.NULL if timer is None else ffi.cast("double *", timer.ctypes.data))
     if timer is not None:
@@ -149,7 +152,30 @@ def advance(state: State, model: Model, params: Params, steps: int, clock: dict 
                               "are blobs spawned on top of each other?", steps_done=stop.steps)
     if stop.why == lib.BC_NO_MEMORY:
         raise MemoryError("the step's scratch could not be allocated")
+    if stop.why in (lib.BC_BROKEN_BLOB, lib.BC_PASSED_BLOB):
+        blob, wall = divmod(stop.detail, len(model.walls.motion))
+        raise SimulationError(broken_blob(state, model, blob, wall, stop.why == lib.BC_PASSED_BLOB, arrays),
+                              steps_done=stop.steps)
     return stop.steps
+
+
+def broken_blob(state: State, model: Model, blob: int, wall: int, passed: bool = False, arrays=None) -> str:
+    """What the step says of blob `blob`, which loaded wall `wall` passed through (`passed`), or which it left
+    inside out or crushed beside moving collider `wall` (core/walls.c: bc_find_passed_blob, bc_first_broken_blob);
+    `arrays`: a schedule's, whose target areas the blob was held to."""
+    from .measure import blob_measures
+
+    area, _ = blob_measures(state, model)
+    ratio = area[blob] / (model.target_area if arrays is None else arrays.target_area)[blob]
+    what = "inside out" if not ratio > 0.0 else f"at {ratio:.0%} of its area"
+    if model.walls.motion[wall] == LOADED:
+        kind, why = "loaded", ("the blobs it presses cannot carry its load at the substeps a step may take: lower "
+                               "the load, or let a step take more ([scene] max_substeps), or stiffen the blobs")
+    else:
+        kind, why = "moving", "a kinematic collider moves as it is told, however hard the blobs push back"
+    if passed:
+        return f"static[{wall}], a loaded collider, passed into or through blob {blob} ({model.names[blob]}): {why}"
+    return f"blob {blob} ({model.names[blob]}) is {what} beside static[{wall}], a {kind} collider: {why}"
 
 
 def step(state: State, model: Model, params: Params, clock: dict | None = None) -> None:

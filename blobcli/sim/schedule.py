@@ -12,6 +12,8 @@ takes the same values as an uninterrupted one. The model stays as the scene buil
         acts through the whole step, so the impulse a schedule gives is the sum of its values × dt: for keyframes
         at multiples of dt, the area under the keyframes' line less (last − first) dt / 2 (a pulse from 0 to 0:
         exactly its area)
+    adhesion: the blob's row of `adhesion` (core/adhesion.c): sticky from the step it is above 0, free from the step
+        it is 0 again
     scene.gravity: the step's settings (g, "up", the rest speed of restitution)
     scene.periodic: the periodic box's sides L; when they change, each blob moves with the box, its centre
         c remapped affinely, c <- c L_new / L_old (the whole blob shifted, not stretched; velocities kept:
@@ -66,7 +68,7 @@ class Schedules:
         self.scale = np.ones(model.blob_count)
         self.arrays = a._replace(inv_mass=a.inv_mass.copy(), rest_length=a.rest_length.copy(),
                                  rest_perimeter=a.rest_perimeter.copy(), target_area=a.target_area.copy(),
-                                 material=a.material.copy(), driving=a.driving.copy())
+                                 material=a.material.copy(), driving=a.driving.copy(), adhesion=a.adhesion.copy())
 
     def __bool__(self) -> bool:
         return bool(self.blob_items) or any(x is not None for x in (self.gravity, self.box, self.shear))
@@ -92,6 +94,9 @@ class Schedules:
                 state.still[blobs] = 0.0
             if key in MATERIAL_COLUMN:
                 a.material[blobs, MATERIAL_COLUMN[key]] = v
+                continue
+            if key == "adhesion":
+                a.adhesion[blobs] = v
                 continue
             if key == "mass":
                 for b in blobs:

@@ -50,8 +50,9 @@ def _boxes(f, frames: int):
     return np.einsum("ck,fkj->fcj", signs, e)
 
 
-def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
-    """Draw `frames` evenly spaced frames of a trajectory side by side into a PNG."""
+def render(h5_path, png_path, frames: int = 6, width: float = 3.0, columns: int | None = None) -> Path:
+    """Draw `frames` evenly spaced frames of a trajectory side by side into a PNG, each `width` inches wide, in rows
+    of `columns` (default: one row)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -70,10 +71,14 @@ def render(h5_path, png_path, frames: int = 6, width: float = 3.0) -> Path:
     pad = 0.08 * max(float(np.max(hi - lo)), 0.5)
     lo, hi = lo - pad, hi + pad
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
-    fig, axes = plt.subplots(1, len(picks), figsize=(width * len(picks), width * min(max(aspect, 0.3), 3.0)),
+    cols = min(columns or len(picks), len(picks))
+    rows = -(-len(picks) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(width * cols, width * min(max(aspect, 0.3), 3.0) * rows),
                              squeeze=False)
+    for ax in axes.flat[len(picks):]:  # a last row's empty places
+        ax.set_axis_off()
     colors = blob_colors(len(t.offsets) - 1) / 255.0
-    for ax, f in zip(axes[0], picks):
+    for ax, f in zip(axes.flat, picks):
         poses = (t.statics["position"][f], t.statics["angle"][f]) if t.statics else (None, None)
         draw_statics(ax, scene.statics, lo, hi, *poses)
         if boxes is not None:
