@@ -29,12 +29,19 @@
  * no blob run in parallel; smaller scenes keep one strip, so their blobs go in index order. Either way the
  * order is set by the scene, not by the number of threads.
  *
- * Friction (with each push, Müller et al. 2020): Coulomb on the relative tangential slip Δx_t of the vertex
- * against the other blob, with the same generalized masses as the push: undone entirely if |Δx_t| <= μ_s D,
- * D the vertex's total push-out this substep (static); else cut by μ_k D (kinetic). The slip is measured
- * from a stick point, a material point of the other blob (an edge and t along it: stick_edge, stick_t)
- * that the contact keeps while it holds: set where the vertex touches after its first push, and again after
- * every kinetic slide. Coefficients of the two blobs combine as √(μ_a μ_b) (friction.h).
+ * Friction (with each push, Müller et al. 2020): Coulomb on the contact's tangential correction over the
+ * substep, with the same generalized masses as the push. The slip Δx_t of the vertex against the other blob is
+ * measured from a stick point, a material point of the other blob (an edge and t along it: stick_edge,
+ * stick_t) that the contact keeps while it holds: set where the vertex touches after its first push, and again
+ * after every kinetic slide. Each iteration the contact would undo all of Δx_t; K, the tangential correction it
+ * has made so far this substep (friction_sum), plus Δx_t is what holding it costs over the substep, and
+ * Coulomb bounds that against D, the vertex's push-out this substep: held (static) while |K + Δx_t| <= μ_s D;
+ * else it slides, and the correction is set back so that the substep's total is (K + Δx_t) μ_k D / |K + Δx_t|,
+ * along the same direction. The bound is on the substep's sum, not on each iteration's share of it: the
+ * perimeter and area stages move a loaded blob's contact vertices to and fro within a substep (tension and
+ * pressure at a flattened contact), and a contact that counted each of those moves against μ_s D slid where
+ * the substep's net force on it was small, and piles crept. Coefficients of the two blobs combine as
+ * √(μ_a μ_b) (friction.h).
  *
  * Periodic box: a vertex p of blob a meets blob b's vertices as p + s, s the shift to a's image nearest b
  * (bc_image; s = 0 without arithmetic in an open world), and each contact's impulses go into the blobs'
@@ -53,7 +60,7 @@
 #include "scratch.h"
 
 #define CPV BC_CONTACTS_PER_VERTEX
-#define PUSH_ROW 8 /* a push's row in the scratch: Δ_x, Δ_y, w_p, w_e, t, renew stick, -C (one spare) */
+#define PUSH_ROW 10 /* a push's row in the scratch: Δ_x, Δ_y, w_p, w_e, t, renew stick, -C, f_x, f_y (one spare) */
 static const int VELOCITY_PASSES = 2; /* Jacobi passes of bc_blob_contact_velocities */
 
 /* The arrays the contact stages read, with the vertex count N: (2, N) arrays are x = a[i], y = a[N + i];
@@ -74,7 +81,8 @@ typedef struct Contacts {
     int64_t *stick_edge;
     double *stick_t;
     bcBox box;
-    double *virial; /* (B, 4), NULL in an open world (read only where box.lx > 0) */
+    double *virial;       /* (B, 4), NULL in an open world (read only where box.lx > 0) */
+    double *friction_sum; /* (2, CONTACTS_PER_VERTEX, N): K, each contact's tangential correction this substep */
     double h;
 } Contacts;
 
@@ -87,7 +95,8 @@ static Contacts contacts_of(const bcContext *ctx, double h) {
                       .material = m->material, .c_edge = s->c_edge, .c_hit = s->c_hit, .c_normal = s->c_normal,
                       .depth = s->blob_contact_depth, .center = s->center, .radius = s->radius, .up_x = c->up_x,
                       .up_y = c->up_y, .stick_edge = s->stick_edge, .stick_t = s->stick_t,
-                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial, .h = h};
+                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial,
+                      .friction_sum = ctx->w->friction_sum, .h = h};
 }
 
 static inline int64_t floor_div(int64_t a, int64_t b) { return a / b - (a % b != 0 && (a < 0) != (b < 0)); }
@@ -321,7 +330,8 @@ static bool contact_push(const Contacts *cs, int64_t p, int64_t s, double *push)
     double W = wp + (1.0 - t) * w0 + t * w1;
     /* Friction on the relative slip r of p: from its stick point on the other blob, or for a contact that has
      * none yet, against q since the substep began. The normal push changes r by -C n only, so r's tangential
-     * part t_r can be read before it, and push and friction go in one move: Δ = (-C n - cut t_r) / W. */
+     * part t_r can be read before it, and push and friction go in one move: Δ = (-C n - f) / W, f the
+     * tangential correction (t_r where the contact holds). */
     int64_t a0 = cs->stick_edge[s * n + p];
     double rx, ry;
     if (a0 >= 0) { /* held at a stick point: the slip is p's way from it */
@@ -336,25 +346,37 @@ static bool contact_push(const Contacts *cs, int64_t p, int64_t s, double *push)
     }
     double rn = rx * nx + ry * ny;
     double tx = rx - rn * nx, ty = ry - rn * ny;
-    double cut = 0.0;
-    /* the slip, where there is friction (frictionless, both limits are 0 and so is the cut, whatever the slip) */
+    double fx = 0.0, fy = 0.0;
+    bool slides = false;
+    /* where there is friction (frictionless, both limits are 0, and nothing is corrected, whatever the slip) */
     const double *material = cs->material;
-    bool frictional = material[3 * a] * material[3 * blob] > 0.0 || material[3 * a + 1] * material[3 * blob + 1] > 0.0;
-    double slip = frictional ? sqrt(tx * tx + ty * ty) : 0.0;
-    if (slip > 0.0) {
-        /* Static: undo the whole slip; kinetic: cut it by μ_k D (|f_t| <= μ |f_n|), D the push-out summed over
-         * the substep, as in the static rule and at the static colliders. */
+    if (material[3 * a] * material[3 * blob] > 0.0 || material[3 * a + 1] * material[3 * blob + 1] > 0.0) {
+        /* Coulomb on the substep's whole correction K + t_r: held within μ_s D, D the push-out summed over the
+         * substep (this push's -C too); else the substep's total set to μ_k D along it */
         double static_limit, kinetic_limit;
         friction_limits(material, a, blob, cs->depth[p] - C, &static_limit, &kinetic_limit);
-        cut = bc_coulomb_cut(slip, static_limit, kinetic_limit);
+        const double *K = cs->friction_sum;
+        double kx = K[s * n + p] + tx, ky = K[(CPV + s) * n + p] + ty;
+        double total = sqrt(kx * kx + ky * ky);
+        if (total <= static_limit) {
+            fx = tx;
+            fy = ty;
+        } else {
+            double kept = kinetic_limit / total;
+            fx = kx * kept - K[s * n + p];
+            fy = ky * kept - K[(CPV + s) * n + p];
+            slides = true;
+        }
     }
-    push[0] = (-C * nx - cut * tx) / W;
-    push[1] = (-C * ny - cut * ty) / W;
+    push[0] = (-C * nx - fx) / W;
+    push[1] = (-C * ny - fy) / W;
     push[2] = wp;
     push[3] = we;
     push[4] = t;
-    push[5] = a0 < 0 || cut < 1.0 ? 1.0 : 0.0; /* whether the stick point is set anew after it */
+    push[5] = a0 < 0 || slides ? 1.0 : 0.0; /* whether the stick point is set anew after it */
     push[6] = -C;
+    push[7] = fx;
+    push[8] = fy;
     return true;
 }
 
@@ -368,11 +390,11 @@ static inline void pushed(const Contacts *cs, int64_t r, int64_t o, int64_t *p, 
     *e1 = bc_next_in_ring(*e0, cs->offsets[*b], cs->offsets[*b + 1]);
 }
 
-/* A push (its row, see contact_push), scaled: p moves by w_p Δ, the edge's ends by -(1 - t) w_e Δ and
- * -t w_e Δ. In a periodic box its impulses go into the virial: m Δx / h on p's blob at p, and on the other
+/* A push (its row, see contact_push) of contact slot c, scaled: p moves by w_p Δ, the edge's ends by
+ * -(1 - t) w_e Δ and -t w_e Δ; the contact's push-out D and tangential correction K grow by the scaled -C and f. In a periodic box its impulses go into the virial: m Δx / h on p's blob at p, and on the other
  * at the edge point. */
-static void apply_push(const Contacts *cs, int64_t p, int64_t e0, int64_t e1, int64_t a, int64_t b, double scale,
-                       const double *push) {
+static void apply_push(const Contacts *cs, int64_t p, int64_t c, int64_t e0, int64_t e1, int64_t a, int64_t b,
+                       double scale, const double *push) {
     const int64_t n = cs->n;
     double *pos = cs->pos;
     double dx = scale * push[0], dy = scale * push[1], wp = push[2], we = push[3], t = push[4];
@@ -386,6 +408,8 @@ static void apply_push(const Contacts *cs, int64_t p, int64_t e0, int64_t e1, in
     }
     apply(pos, n, p, e0, e1, wp, (1.0 - t) * we, t * we, dx, dy);
     cs->depth[p] += scale * push[6];
+    cs->friction_sum[c * n + p] += scale * push[7];
+    cs->friction_sum[(CPV + c) * n + p] += scale * push[8];
 }
 
 /* The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s) those of a vertex in
@@ -433,7 +457,7 @@ static void resolve_between(const Contacts *cs, const bcScratch *w, bool far, in
                 int64_t r = listed[i_row], p, c, b, e0, e1;
                 pushed(cs, r, o, &p, &c, &b, &e0, &e1);
                 double most = bc_max(bc_max(bc_max(share[p], share[e0]), share[e1]), 1.0);
-                apply_push(cs, p, e0, e1, a, b, 1.0 / most, push + PUSH_ROW * r);
+                apply_push(cs, p, c, e0, e1, a, b, 1.0 / most, push + PUSH_ROW * r);
             }
             for (int64_t i_row = 0; i_row < pushes; i_row++) {
                 int64_t r = listed[i_row], p, c, b, e0, e1;
