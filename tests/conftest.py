@@ -54,6 +54,8 @@ ROLL_SLIDE = 0.05  # ... and not above 1 by more than this (it would be sliding,
 PILE_REST_CENTRE = 2e-3  # m/s: fastest blob centre of a settled pile with sleeping off (issue 12's target) ...
 PILE_REST_VERTEX = 20e-3  # m/s: ... and fastest vertex
 PILE_ASLEEP = 0.9  # share of a settled pile's blobs asleep with sleeping on (the default)
+LAYOUT_REST_CENTRE = 1e-3  # m/s: fastest centre of a pile of tools/piles.LAYOUTS about 12 s after it landed ...
+LAYOUT_REST_VERTEX = 5e-3  # m/s: ... and fastest vertex
 COMPARE_REPORT = 1e-12  # m: a deviation `compare` reports vs the one planted in the file
 DRIVEN_MOMENTUM = 1e-9  # relative: momentum F T and angular momentum τ T (about the centre) that a free blob
 #                        driven for T gains, and a torque's momentum, over τ T / R (measured 1e-12: round-off)

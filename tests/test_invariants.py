@@ -150,22 +150,25 @@ def test_a_step_too_coarse_for_its_blobs_takes_more_substeps():
     sc = load_scene(STRESS_SCENES / "large_dt.toml")
     model, _ = build(sc)
 
-    def run(params):
-        """The worst area error over the run (every ring simple at every step) and State.substeps_taken."""
+    def run(params, simple):
+        """The worst area error over the run (with `simple`: every ring simple at every step) and
+        State.substeps_taken."""
         _, state = build(sc)
         worst = 0.0
         for _ in range(params.steps):
             advance(state, model, params, 1)
             area, _ = blob_measures(state, model)
             worst = max(worst, float(np.max(np.abs(area / model.target_area - 1.0))))
-            assert not any(self_intersects(state.pos[o:e]) for o, e in zip(model.offsets[:-1], model.offsets[1:]))
+            assert not simple or not any(self_intersects(state.pos[o:e])
+                                         for o, e in zip(model.offsets[:-1], model.offsets[1:]))
         return worst, state.substeps_taken
 
     params = build_params(sc)
-    worst, (most, more) = run(params)
+    worst, (most, more) = run(params, simple=True)
     assert worst < COARSE_STEP_AREA
     assert params.substeps == 1 and most > 1 and more == params.steps
-    worst, (most, more) = run(replace(params, max_substeps=1))
+    # (held to one substep of 0.1 s, what the stress judge calls a failure may fold a ring too: not asked here)
+    worst, (most, more) = run(replace(params, max_substeps=1), simple=False)
     assert worst > COARSE_STEP_AREA and most == 1 and more == 0
 
 

@@ -426,6 +426,7 @@ int64_t bc_find_blob_pairs(const bcContext *ctx) {
     int64_t count = list_pairs(ctx, &g, periodic, box);
     for (int64_t i = 0; i < N; i++) s->blob_contact_depth[i] = 0.0; /* no contact has pushed yet this substep */
     for (int64_t i = 0; i < BC_CONTACTS_PER_VERTEX * N; i++) s->c_hit[i] = 0;
+    for (int64_t i = 0; i < 2 * BC_CONTACTS_PER_VERTEX * N; i++) ctx->w->friction_sum[i] = 0.0; /* nor corrected */
     partners(ctx->w, B);
     strips(ctx);
     return count;

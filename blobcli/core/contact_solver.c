@@ -1,6 +1,6 @@
 /* The blob contacts' solver: each kept contact (bcState.c_edge, found by the narrow phase) pushes its vertex
  * out of the other blob where it is inside, with friction, every iteration; after the substep, the contacts
- * that pushed lose their approach and their slip at velocity level.
+ * that pushed lose their approach and their slip at velocity level (contact_velocities.c).
  *
  * The point–edge constraint, with q = (1 - t) x_0 + t x_1 the closest point on edge (x_0, x_1) and n its
  * outward normal:
@@ -29,12 +29,19 @@
  * no blob run in parallel; smaller scenes keep one strip, so their blobs go in index order. Either way the
  * order is set by the scene, not by the number of threads.
  *
- * Friction (with each push, Müller et al. 2020): Coulomb on the relative tangential slip Δx_t of the vertex
- * against the other blob, with the same generalized masses as the push: undone entirely if |Δx_t| <= μ_s D,
- * D the vertex's total push-out this substep (static); else cut by μ_k D (kinetic). The slip is measured
- * from a stick point, a material point of the other blob (an edge and t along it: stick_edge, stick_t)
- * that the contact keeps while it holds: set where the vertex touches after its first push, and again after
- * every kinetic slide. Coefficients of the two blobs combine as √(μ_a μ_b) (friction.h).
+ * Friction (with each push, Müller et al. 2020): Coulomb on the contact's tangential correction over the
+ * substep, with the same generalized masses as the push. The slip Δx_t of the vertex against the other blob is
+ * measured from a stick point, a material point of the other blob (an edge and t along it: stick_edge,
+ * stick_t) that the contact keeps while it holds: set where the vertex touches after its first push, and again
+ * after every kinetic slide. Each iteration the contact would undo all of Δx_t; K, the tangential correction it
+ * has made so far this substep (friction_sum), plus Δx_t is what holding it costs over the substep, and
+ * Coulomb bounds that against D, the vertex's push-out this substep: held (static) while |K + Δx_t| <= μ_s D;
+ * else it slides, and the correction is set back so that the substep's total is (K + Δx_t) μ_k D / |K + Δx_t|,
+ * along the same direction. The bound is on the substep's sum, not on each iteration's share of it: the
+ * perimeter and area stages move a loaded blob's contact vertices to and fro within a substep (tension and
+ * pressure at a flattened contact), and a contact that counted each of those moves against μ_s D slid where
+ * the substep's net force on it was small, and piles crept. Coefficients of the two blobs combine as
+ * √(μ_a μ_b) (friction.h).
  *
  * Periodic box: a vertex p of blob a meets blob b's vertices as p + s, s the shift to a's image nearest b
  * (bc_image; s = 0 without arithmetic in an open world), and each contact's impulses go into the blobs'
@@ -44,83 +51,20 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "collide_limits.h"
 #include "contact_solver.h"
-#include "friction.h"
+#include "contacts.h"
 #include "parallel.h"
-#include "periodic.h"
-#include "ring.h"
-#include "scratch.h"
 
-#define CPV BC_CONTACTS_PER_VERTEX
-#define PUSH_ROW 8 /* a push's row in the scratch: Δ_x, Δ_y, w_p, w_e, t, renew stick, -C (one spare) */
-static const int VELOCITY_PASSES = 2; /* Jacobi passes of bc_blob_contact_velocities */
-
-/* The arrays the contact stages read, with the vertex count N: (2, N) arrays are x = a[i], y = a[N + i];
- * c_edge and the like (CONTACTS_PER_VERTEX, N): slot c of vertex p is [c N + p] */
-typedef struct Contacts {
-    int64_t n;
-    double *pos;
-    const double *prev, *inv_mass;
-    const int64_t *offsets, *blob_of;
-    const uint8_t *awake;
-    const double *orient, *material; /* material: (B, 3) μ_s, μ_k, e */
-    int64_t *c_edge;
-    uint8_t *c_hit;
-    double *c_normal; /* (2, CONTACTS_PER_VERTEX, N) */
-    double *depth;    /* blob_contact_depth */
-    const double *center, *radius;
-    double up_x, up_y;
-    int64_t *stick_edge;
-    double *stick_t;
-    bcBox box;
-    double *virial; /* (B, 4), NULL in an open world (read only where box.lx > 0) */
-    double h;
-} Contacts;
-
-static Contacts contacts_of(const bcContext *ctx, double h) {
-    const bcModel *m = ctx->m;
-    bcState *s = ctx->s;
-    const bcSettings *c = ctx->c;
-    return (Contacts){.n = m->vertex_count, .pos = s->position, .prev = s->previous, .inv_mass = m->inv_mass,
-                      .offsets = m->offsets, .blob_of = m->blob_of, .awake = s->awake, .orient = m->orient,
-                      .material = m->material, .c_edge = s->c_edge, .c_hit = s->c_hit, .c_normal = s->c_normal,
-                      .depth = s->blob_contact_depth, .center = s->center, .radius = s->radius, .up_x = c->up_x,
-                      .up_y = c->up_y, .stick_edge = s->stick_edge, .stick_t = s->stick_t,
-                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial, .h = h};
-}
+#define PUSH_ROW 10 /* a push's row in the scratch: Δ_x, Δ_y, w_p, w_e, t, renew stick, -C, f_x, f_y (one spare) */
 
 static inline int64_t floor_div(int64_t a, int64_t b) { return a / b - (a % b != 0 && (a < 0) != (b < 0)); }
 static inline int64_t floor_mod(int64_t a, int64_t b) { return a - b * floor_div(a, b); }
 static inline int64_t iabs(int64_t a) { return a < 0 ? -a : a; }
-static inline double clamp01(double t) { return bc_min(bc_max(t, 0.0), 1.0); }
-
-/* Where p projects onto the line of edge e0→e1, as t (0 at x_0, 1 at x_1; 0 for a zero-length edge) */
-static inline double along(const double *pos, int64_t n, int64_t e0, int64_t e1, double px, double py) {
-    double ex = pos[e1] - pos[e0], ey = pos[n + e1] - pos[n + e0];
-    double len2 = ex * ex + ey * ey;
-    return len2 > 0.0 ? ((px - pos[e0]) * ex + (py - pos[n + e0]) * ey) / len2 : 0.0;
-}
 
 /* Whether edge e0→e1's outward normal (the sign of its ring's winding, orient) opposes v */
 static inline bool faces(const double *pos, int64_t n, double orient, int64_t e0, int64_t e1, double vnx,
                          double vny) {
     return orient * ((pos[n + e1] - pos[n + e0]) * vnx - (pos[e1] - pos[e0]) * vny) < 0.0;
-}
-
-/* virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre */
-static inline void add_virial(double *virial, int64_t b, double rx, double ry, double jx, double jy) {
-    virial[4 * b] += rx * jx;
-    virial[4 * b + 1] += rx * jy;
-    virial[4 * b + 2] += ry * jx;
-    virial[4 * b + 3] += ry * jy;
-}
-
-/* (μ_s D, μ_k D) of a contact between blobs a and b */
-static inline void friction_limits(const double *material, int64_t a, int64_t b, double D, double *static_limit,
-                                   double *kinetic_limit) {
-    *static_limit = bc_mix_friction(material[3 * a], material[3 * b]) * D;
-    *kinetic_limit = bc_mix_friction(material[3 * a + 1], material[3 * b + 1]) * D;
 }
 
 /* Move p by w_p d and the edge ends by -w d: the relative motion changes by W d, momentum by 0 */
@@ -321,7 +265,8 @@ static bool contact_push(const Contacts *cs, int64_t p, int64_t s, double *push)
     double W = wp + (1.0 - t) * w0 + t * w1;
     /* Friction on the relative slip r of p: from its stick point on the other blob, or for a contact that has
      * none yet, against q since the substep began. The normal push changes r by -C n only, so r's tangential
-     * part t_r can be read before it, and push and friction go in one move: Δ = (-C n - cut t_r) / W. */
+     * part t_r can be read before it, and push and friction go in one move: Δ = (-C n - f) / W, f the
+     * tangential correction (t_r where the contact holds). */
     int64_t a0 = cs->stick_edge[s * n + p];
     double rx, ry;
     if (a0 >= 0) { /* held at a stick point: the slip is p's way from it */
@@ -336,25 +281,37 @@ static bool contact_push(const Contacts *cs, int64_t p, int64_t s, double *push)
     }
     double rn = rx * nx + ry * ny;
     double tx = rx - rn * nx, ty = ry - rn * ny;
-    double cut = 0.0;
-    /* the slip, where there is friction (frictionless, both limits are 0 and so is the cut, whatever the slip) */
+    double fx = 0.0, fy = 0.0;
+    bool slides = false;
+    /* where there is friction (frictionless, both limits are 0, and nothing is corrected, whatever the slip) */
     const double *material = cs->material;
-    bool frictional = material[3 * a] * material[3 * blob] > 0.0 || material[3 * a + 1] * material[3 * blob + 1] > 0.0;
-    double slip = frictional ? sqrt(tx * tx + ty * ty) : 0.0;
-    if (slip > 0.0) {
-        /* Static: undo the whole slip; kinetic: cut it by μ_k D (|f_t| <= μ |f_n|), D the push-out summed over
-         * the substep, as in the static rule and at the static colliders. */
+    if (material[3 * a] * material[3 * blob] > 0.0 || material[3 * a + 1] * material[3 * blob + 1] > 0.0) {
+        /* Coulomb on the substep's whole correction K + t_r: held within μ_s D, D the push-out summed over the
+         * substep (this push's -C too); else the substep's total set to μ_k D along it */
         double static_limit, kinetic_limit;
         friction_limits(material, a, blob, cs->depth[p] - C, &static_limit, &kinetic_limit);
-        cut = bc_coulomb_cut(slip, static_limit, kinetic_limit);
+        const double *K = cs->friction_sum;
+        double kx = K[s * n + p] + tx, ky = K[(CPV + s) * n + p] + ty;
+        double total = sqrt(kx * kx + ky * ky);
+        if (total <= static_limit) {
+            fx = tx;
+            fy = ty;
+        } else {
+            double kept = kinetic_limit / total;
+            fx = kx * kept - K[s * n + p];
+            fy = ky * kept - K[(CPV + s) * n + p];
+            slides = true;
+        }
     }
-    push[0] = (-C * nx - cut * tx) / W;
-    push[1] = (-C * ny - cut * ty) / W;
+    push[0] = (-C * nx - fx) / W;
+    push[1] = (-C * ny - fy) / W;
     push[2] = wp;
     push[3] = we;
     push[4] = t;
-    push[5] = a0 < 0 || cut < 1.0 ? 1.0 : 0.0; /* whether the stick point is set anew after it */
+    push[5] = a0 < 0 || slides ? 1.0 : 0.0; /* whether the stick point is set anew after it */
     push[6] = -C;
+    push[7] = fx;
+    push[8] = fy;
     return true;
 }
 
@@ -368,11 +325,11 @@ static inline void pushed(const Contacts *cs, int64_t r, int64_t o, int64_t *p, 
     *e1 = bc_next_in_ring(*e0, cs->offsets[*b], cs->offsets[*b + 1]);
 }
 
-/* A push (its row, see contact_push), scaled: p moves by w_p Δ, the edge's ends by -(1 - t) w_e Δ and
- * -t w_e Δ. In a periodic box its impulses go into the virial: m Δx / h on p's blob at p, and on the other
+/* A push (its row, see contact_push) of contact slot c, scaled: p moves by w_p Δ, the edge's ends by
+ * -(1 - t) w_e Δ and -t w_e Δ; the contact's push-out D and tangential correction K grow by the scaled -C and f. In a periodic box its impulses go into the virial: m Δx / h on p's blob at p, and on the other
  * at the edge point. */
-static void apply_push(const Contacts *cs, int64_t p, int64_t e0, int64_t e1, int64_t a, int64_t b, double scale,
-                       const double *push) {
+static void apply_push(const Contacts *cs, int64_t p, int64_t c, int64_t e0, int64_t e1, int64_t a, int64_t b,
+                       double scale, const double *push) {
     const int64_t n = cs->n;
     double *pos = cs->pos;
     double dx = scale * push[0], dy = scale * push[1], wp = push[2], we = push[3], t = push[4];
@@ -386,6 +343,8 @@ static void apply_push(const Contacts *cs, int64_t p, int64_t e0, int64_t e1, in
     }
     apply(pos, n, p, e0, e1, wp, (1.0 - t) * we, t * we, dx, dy);
     cs->depth[p] += scale * push[6];
+    cs->friction_sum[c * n + p] += scale * push[7];
+    cs->friction_sum[(CPV + c) * n + p] += scale * push[8];
 }
 
 /* The contacts of a vertex in strip s with an edge in strip `other`, then (if other != s) those of a vertex in
@@ -433,7 +392,7 @@ static void resolve_between(const Contacts *cs, const bcScratch *w, bool far, in
                 int64_t r = listed[i_row], p, c, b, e0, e1;
                 pushed(cs, r, o, &p, &c, &b, &e0, &e1);
                 double most = bc_max(bc_max(bc_max(share[p], share[e0]), share[e1]), 1.0);
-                apply_push(cs, p, e0, e1, a, b, 1.0 / most, push + PUSH_ROW * r);
+                apply_push(cs, p, c, e0, e1, a, b, 1.0 / most, push + PUSH_ROW * r);
             }
             for (int64_t i_row = 0; i_row < pushes; i_row++) {
                 int64_t r = listed[i_row], p, c, b, e0, e1;
@@ -493,159 +452,5 @@ void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h) {
             resolve_between(&cs, w, phase == 0, s, s + shift, reverse != 0, w->resolve_push + q * slots * PUSH_ROW,
                             w->resolve_listed + q * slots);
         });
-    }
-}
-
-/* (t, n_x, n_y, 1 / W, w_e, μ_s D / h, μ_k D / h) of vertex p's contact c with edge e0→e1 into column i of
- * geometry (rows of `stride`), n the normal of its last push; a zero-length edge gets scale 0 (no impulse) */
-static void contact_geometry(const Contacts *cs, int64_t p, int64_t e0, int64_t e1, int64_t c, double *geometry,
-                             int64_t stride) {
-    const int64_t n = cs->n;
-    const double *pos = cs->pos;
-    int64_t a = cs->blob_of[p], blob = cs->blob_of[e0];
-    double ex = pos[e1] - pos[e0], ey = pos[n + e1] - pos[n + e0];
-    double len2 = ex * ex + ey * ey;
-    if (len2 == 0.0) {
-        for (int r = 0; r < 7; r++) geometry[r * stride] = 0.0;
-        return;
-    }
-    double sx, sy;
-    bc_image(cs->center, a, blob, cs->box, &sx, &sy);
-    double t = clamp01(along(pos, n, e0, e1, pos[p] + sx, pos[n + p] + sy));
-    double we = cs->awake[blob] ? cs->inv_mass[e0] : 0.0;
-    double W = cs->inv_mass[p] + ((1.0 - t) * (1.0 - t) + t * t) * we;
-    double static_limit, kinetic_limit;
-    friction_limits(cs->material, a, blob, cs->depth[p] / cs->h, &static_limit, &kinetic_limit);
-    geometry[0] = t;
-    geometry[stride] = cs->c_normal[c * n + p];
-    geometry[2 * stride] = cs->c_normal[(CPV + c) * n + p];
-    geometry[3 * stride] = 1.0 / W;
-    geometry[4 * stride] = we;
-    geometry[5 * stride] = static_limit;
-    geometry[6 * stride] = kinetic_limit;
-}
-
-/* The impulse J of a contact with edge point t, normal n, the scale 1 / (W k) and the static and kinetic
- * limits (see contact_geometry) */
-static void contact_impulse(const double *vel, int64_t n, int64_t p, int64_t e0, int64_t e1, double t, double nx,
-                            double ny, double scale, double static_limit, double kinetic_limit, double *jx,
-                            double *jy) {
-    double ux = vel[p] - (1.0 - t) * vel[e0] - t * vel[e1];
-    double uy = vel[n + p] - (1.0 - t) * vel[n + e0] - t * vel[n + e1];
-    double un = ux * nx + uy * ny;
-    double tx = ux - un * nx, ty = uy - un * ny;
-    double speed = sqrt(tx * tx + ty * ty);
-    double cut = 0.0;
-    if (speed > 0.0) cut = bc_coulomb_cut(speed, static_limit, kinetic_limit);
-    double approach = bc_min(un, 0.0);
-    *jx = -(approach * nx + cut * tx) * scale;
-    *jy = -(approach * ny + cut * ty) * scale;
-}
-
-/* Whether slot c of vertex p holds a contact that pushed this substep. A blob whose contacts are found
- * again after a push keeps the slot's hit while the slot may have found no edge (c_edge -1): such a slot
- * holds no contact. */
-static inline bool pushed_contact(const Contacts *cs, int64_t c, int64_t p) {
-    return cs->c_hit[c * cs->n + p] != 0 && cs->c_edge[c * cs->n + p] >= 0;
-}
-
-/* Contact velocities between blobs: at every contact that pushed this substep (c_hit), the relative velocity
- * of vertex p and the edge point q = (1 - t) x_0 + t x_1 it touches, u = v_p - v_q, loses its approach along
- * the normal n of its last push (u · n < 0: one-sided, as the push) and its tangential part u_t by Coulomb's
- * rule at velocity level: all of it if |u_t| h <= μ_s D (static), else μ_k D / h of it, D the vertex's
- * push-out summed over the substep (the rule of the push).
- *
- * Why: the push and the friction act on positions, one contact after another, and a vertex in a pile is in
- * several; what the Gauss-Seidel order leaves is a sawtooth of 0.05-0.15 mm per substep, which
- * v = (x - x_prev) / h reads as 20-40 mm/s in a pile at rest. Removing the relative velocity each contact
- * should not have, at velocity level, removes most of it.
- *
- * The impulse that zeroes the component of u along a unit vector d is J = -(u · d) / W, with
- * W = w_p + ((1 - t)² + t²) w_e the generalized inverse mass (as for the push), applied as Δv_p = w_p J d,
- * Δv_0 = -(1 - t) w_e J d, Δv_1 = -t w_e J d: Σ m Δv = 0, so momentum is unchanged. Jacobi: every contact's J
- * is found from the same velocities, then scaled by 1 / k, k the most contacts any of its three vertices is
- * in (an edge's end counted by its weight, 1 - t or t; k at least 1), so that a vertex is not over-corrected,
- * and the results are added in contact order: the same for any thread count. A sleeping blob does not move
- * (w_e = 0). */
-void bc_blob_contact_velocities(const bcContext *ctx, double h) {
-    const Contacts cs = contacts_of(ctx, h);
-    const bcScratch *w = ctx->w;
-    const int64_t n = cs.n, B = ctx->m->blob_count;
-    double *vel = ctx->s->velocity;
-    const double *pos = cs.pos, *center = cs.center, *inv_mass = cs.inv_mass;
-    /* The pushed contacts, as vertex p and edge e0 -> e1 (columns of `which`), blob by blob: counted, then
-     * filled from each blob's own offset (in parallel, in the same order for any thread count). */
-    int64_t *first = w->velocity_first;
-    first[0] = 0;
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
-        int64_t count = 0;
-        if (cs.awake[a])
-            for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++)
-                for (int64_t c = 0; c < CPV; c++) count += pushed_contact(&cs, c, p);
-        first[a + 1] = count;
-    });
-    for (int64_t a = 0; a < B; a++) first[a + 1] += first[a];
-    const int64_t K = first[B];
-    int64_t *which = w->velocity_which; /* (4, K) */
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t a = 0; a < B; a++), {
-        if (!cs.awake[a]) continue;
-        int64_t i = first[a];
-        for (int64_t p = cs.offsets[a]; p < cs.offsets[a + 1]; p++) {
-            for (int64_t c = 0; c < CPV; c++) {
-                if (pushed_contact(&cs, c, p)) {
-                    int64_t e0 = cs.c_edge[c * n + p], b = cs.blob_of[e0];
-                    which[i] = p;
-                    which[K + i] = e0;
-                    which[2 * K + i] = bc_next_in_ring(e0, cs.offsets[b], cs.offsets[b + 1]);
-                    which[3 * K + i] = c;
-                    i++;
-                }
-            }
-        }
-    });
-    /* Positions do not change in this stage, so each contact's geometry is found once: t, n, the scale
-     * 1 / (W k), the edge's inverse mass, and the static and kinetic limits μ_s D / h, μ_k D / h (rows of
-     * `geometry`; row 3 holds 1 / W until k is known). */
-    double *geometry = w->velocity_geometry; /* (7, K) */
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), {
-        contact_geometry(&cs, which[i], which[K + i], which[2 * K + i], which[3 * K + i], geometry + i, K);
-    });
-    /* k: how many of the contacts each vertex is in, an edge's end by its weight in the contact (so that a
-     * mirror image of the contacts counts the same), at least 1 */
-    double *share = w->velocity_share;
-    for (int64_t i = 0; i < n; i++) share[i] = 0.0;
-    for (int64_t i = 0; i < K; i++) {
-        share[which[i]] += 1.0;
-        share[which[K + i]] += 1.0 - geometry[i];
-        share[which[2 * K + i]] += geometry[i];
-    }
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), {
-        geometry[3 * K + i] /= bc_max(bc_max(bc_max(share[which[i]], share[which[K + i]]), share[which[2 * K + i]]),
-                                      1.0);
-    });
-    double *impulse = w->velocity_impulse; /* (2, K) */
-    for (int pass = 0; pass < VELOCITY_PASSES; pass++) {
-        BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t i = 0; i < K; i++), { /* every impulse from the same velocities */
-            contact_impulse(vel, n, which[i], which[K + i], which[2 * K + i], geometry[i], geometry[K + i],
-                            geometry[2 * K + i], geometry[3 * K + i], geometry[5 * K + i], geometry[6 * K + i],
-                            &impulse[i], &impulse[K + i]);
-        });
-        for (int64_t i = 0; i < K; i++) { /* then added, in contact order */
-            int64_t p = which[i], e0 = which[K + i], e1 = which[2 * K + i];
-            double t = geometry[i], we = geometry[4 * K + i], jx = impulse[i], jy = impulse[K + i];
-            vel[p] += inv_mass[p] * jx;
-            vel[n + p] += inv_mass[p] * jy;
-            vel[e0] -= (1.0 - t) * we * jx;
-            vel[n + e0] -= (1.0 - t) * we * jy;
-            vel[e1] -= t * we * jx;
-            vel[n + e1] -= t * we * jy;
-            if (cs.box.lx > 0.0) { /* the virial: J on p's blob at p, -m_e w_e J on the other's at q */
-                int64_t a = cs.blob_of[p], b = cs.blob_of[e0];
-                add_virial(cs.virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1], jx, jy);
-                double qx = (1.0 - t) * pos[e0] + t * pos[e1], qy = (1.0 - t) * pos[n + e0] + t * pos[n + e1];
-                add_virial(cs.virial, b, qx - center[2 * b], qy - center[2 * b + 1], -we * jx / inv_mass[e0],
-                           -we * jy / inv_mass[e0]);
-            }
-        }
     }
 }

@@ -1,4 +1,4 @@
-/* contact_solver.h: the blob contacts' solver, positions and velocities (read by cffi) */
+/* contact_solver.h: the blob contacts' solver, at position level (read by cffi) */
 #ifndef BC_CONTACT_SOLVER_H
 #define BC_CONTACT_SOLVER_H
 
@@ -9,10 +9,6 @@
  * (odd iterations): each strip's blobs in reverse order. Writes c_edge, c_hit, c_normal, blob_contact_depth,
  * stick_edge, stick_t, the positions and, in a periodic box, the virial. */
 void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h);
-
-/* At every contact that pushed this substep (c_hit): no approach along its last push's normal, and Coulomb
- * friction on the tangential relative velocity; the impulses go into the virial in a periodic box. */
-void bc_blob_contact_velocities(const bcContext *ctx, double h);
 
 /* The push of vertex (px, py) kept on edge e0 → e1 of ring o..e (winding orient) near a convex corner, where it
  * is behind both edges' lines: e0, e1, t, the normal (nx, ny) and C turned toward the corner's bisector. */

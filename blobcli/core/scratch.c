@@ -66,7 +66,8 @@ bcScratch *bc_scratch_new(const bcModel *m) {
         }
         int64_t N = m->vertex_count, rows = BC_CONTACTS_PER_VERTEX * m->vertex_count;
         w->resolve_slots = BC_CONTACTS_PER_VERTEX * most;
-        w->resolve_push = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots * 8 + 1), sizeof(double));
+        w->resolve_push = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots * 10 + 1), sizeof(double));
+        w->friction_sum = calloc((size_t)(2 * rows + 1), sizeof(double));
         w->resolve_listed = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots + 1), sizeof(int64_t));
         w->resolve_share = calloc((size_t)(N + 1), sizeof(double));
         w->resolve_rows = calloc((size_t)(2 * rows + 1), sizeof(int64_t));
@@ -77,7 +78,7 @@ bcScratch *bc_scratch_new(const bcModel *m) {
         w->velocity_impulse = calloc((size_t)(2 * rows + 1), sizeof(double));
         w->velocity_share = calloc((size_t)(N + 1), sizeof(double));
     }
-    if (!(w->resolve_push && w->resolve_listed && w->resolve_share && w->resolve_rows && w->resolve_row_count &&
+    if (!(w->resolve_push && w->friction_sum && w->resolve_listed && w->resolve_share && w->resolve_rows && w->resolve_row_count &&
           w->velocity_first && w->velocity_which && w->velocity_geometry && w->velocity_impulse && w->velocity_share)) {
         bc_scratch_free(w);
         return NULL;
@@ -169,6 +170,7 @@ void bc_scratch_free(bcScratch *w) {
     free(w->detect_old_t);
     /* contact_solver.c */
     free(w->resolve_push);
+    free(w->friction_sum);
     free(w->resolve_listed);
     free(w->resolve_share);
     free(w->resolve_rows);

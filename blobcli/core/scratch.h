@@ -50,7 +50,8 @@ struct bcScratch {
     /* contact_solver.c: the blob contacts' pushes and rows (collide._resolve's scratch), one row of the first two
      * for each parallel task of a phase, and the velocity stage's contacts (collide.blob_contact_velocities) */
     int64_t resolve_slots;     /* CONTACTS_PER_VERTEX × the most vertices a ring has */
-    double *resolve_push;      /* (MAX_STRIPS, slots, 8): each task's blob's pushes, by slot */
+    double *resolve_push;      /* (MAX_STRIPS, slots, 10): each task's blob's pushes, by slot */
+    double *friction_sum;      /* (2, CONTACTS_PER_VERTEX N): each contact's tangential correction this substep */
     int64_t *resolve_listed;   /* (MAX_STRIPS, slots): each task's blob's slots here, then those that push */
     double *resolve_share;     /* (N): how many pushes each vertex is in; all zero between blobs */
     int64_t *resolve_rows;     /* (2, CONTACTS_PER_VERTEX N): blob a's contacts from CONTACTS_PER_VERTEX o on ... */

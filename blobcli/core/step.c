@@ -15,6 +15,7 @@
 #include "area.h"
 #include "broad_phase.h"
 #include "contact_solver.h"
+#include "contact_velocities.h"
 #include "integrate.h"
 #include "measure.h"
 #include "narrow_phase.h"

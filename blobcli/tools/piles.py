@@ -119,7 +119,7 @@ LAYOUTS = {
     "small-80": (lambda: grid_pile(10, 8, 0.3, 48, 3.2), 14.0),
     "tilted-48": (lambda: tilted_pile(8, 6, 0.4, 32, 3.4, 4.0, 0.7), 14.0),
     "tilted-60": (lambda: tilted_pile(6, 10, 0.45, 24, 3.2, 4.0, 0.7), 14.0),
-    "random-90": (lambda: random_pile(45, 45, 2.6, 22.0, 1), 16.0),
+    "random-90": (lambda: random_pile(45, 45, 2.6, 22.0, 1), 22.0),
     "plane-300": (lambda: grid_pile(15, 20, 0.5, 32, 7.75), 18.0),
     "plane-1000": (lambda: grid_pile(25, 40, 0.5, 32, 12.75), 25.0),
 }
