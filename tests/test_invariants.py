@@ -247,10 +247,11 @@ def slab_points(width=1.2, height=0.25, per_edge=8):
 
 
 def slab_on_slope(friction, static_friction):
-    """A wide flat blob (it cannot roll) resting on a 10° slope."""
+    """A wide flat blob (it cannot roll) resting on a 10° slope, sleeping off (asleep, it could not creep)."""
     return f"""
 [scene]
 duration = 3.0
+sleep = false
 gravity = [{9.81 * np.sin(np.radians(10)):.17g}, {-9.81 * np.cos(np.radians(10)):.17g}]
 [[blob]]
 points = {slab_points()}
