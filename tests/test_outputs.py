@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import cli, start_run
 
-import blobcli.io.h5md as h5md
+import blobcli.io.h5md.writer as h5md_writer
 import blobcli.io.interrupts as interrupts
 import blobcli.io.outputs as outputs
 import blobcli.io.run as run_module
@@ -46,7 +46,7 @@ def frames_of(path):
 
 
 def small_blocks(monkeypatch):
-    monkeypatch.setattr(h5md, "BLOCK_BYTES", 1)  # one frame per block: many flushes, many copy steps
+    monkeypatch.setattr(h5md_writer, "BLOCK_BYTES", 1)  # one frame per block: many flushes, many copy steps
 
 
 def pending_after(monkeypatch, calls: int, signum=signal.SIGINT):
@@ -171,13 +171,13 @@ def test_4_a_full_disk_keeps_the_frames_written_and_says_so(tmp_path, monkeypatc
     def statvfs(path):
         calls["n"] += 1
         return real(path) if calls["n"] <= 10 else Full()
-    monkeypatch.setattr(h5md.os, "statvfs", statvfs)
+    monkeypatch.setattr(h5md_writer.os, "statvfs", statvfs)
     code, out, err = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 1 and "no space left on the disk" in err and "kept the 10 frames" in err
     n, complete, restart = frames_of(tmp_path / "o.h5")
     assert n == 10 and not complete and restart
     assert not (tmp_path / "o.h5.partial").exists()
-    monkeypatch.setattr(h5md.os, "statvfs", real)  # room again: it resumes
+    monkeypatch.setattr(h5md_writer.os, "statvfs", real)  # room again: it resumes
     assert cli("run", scene_file(tmp_path), "--resume", tmp_path / "o.h5", "-q")[0] == 0
 
 
@@ -224,7 +224,7 @@ def test_7_a_signal_during_the_final_rename_is_held_until_the_file_is_in_place(t
     def publish_with_signal(partial, path):
         os.kill(os.getpid(), signal.SIGTERM)  # arrives inside the deferred section
         real(partial, path)
-    monkeypatch.setattr(h5md, "publish", publish_with_signal)
+    monkeypatch.setattr(h5md_writer, "publish", publish_with_signal)
     code, out, _ = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 0 and frames_of(tmp_path / "o.h5") == (41, True, True)
     assert not (tmp_path / "o.h5.partial").exists()
