@@ -51,7 +51,7 @@ LAYOUT = """\
       angle/{value,step,time}         value float64 [frames, statics]  unit "deg": its turn since t = 0
       force/{value,step,time}         value float64 [frames, statics, 2]  unit "N": the force the blobs exert
                                       on it, their contact impulses over the frame's step / dt (0 at frame 0):
-                                      the pushes and the velocity stages' impulses (since 2026-11-26; before,
+                                      the pushes and the velocity stages' impulses (older files of blobsim 0.1:
                                       the pushes alone, too much while a blob settled after an impact)
       torque/{value,step,time}        value float64 [frames, statics]  unit "N m": their moment about its pivot
     (in a periodic box only, format 8: what the packing measures, sim/packing.py; 0 at frame 0)

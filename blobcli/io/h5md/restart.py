@@ -44,7 +44,7 @@ def _resume_problems(f, path, scene, params) -> list[str]:
         if text(p["scene"][()]) != scene.text:
             problems.append(f"{path}: was run from a different scene text than {scene.source}")
         for key in ("dt", "substeps", "iterations", "method", "every", "max_substeps"):
-            if key not in p.attrs:  # (max_substeps: not in files of blobsim 0.1 before 2026-11-26)
+            if key not in p.attrs:  # (max_substeps: not in older files of blobsim 0.1)
                 continue
             was, now = p.attrs[key], getattr(params, key)
             if was != now:
