@@ -21,6 +21,18 @@ def signed_area(points) -> float:
                      for i in range(n))
 
 
+def blob_points(b) -> np.ndarray:
+    """The blob's polygon as an (n, 2) array, in the winding the user gave.
+
+    b is a blob definition (scene.schema.BlobDef or anything with its points, vertices, center
+    and radius): given points, or a regular polygon of b.vertices on a circle of b.radius."""
+    if b.points is not None:
+        return np.array(b.points, dtype=np.float64)
+    theta = 2.0 * np.pi * np.arange(b.vertices) / b.vertices
+    cx, cy = b.center or (0.0, 0.0)  # no centre: a blob with count, placed at random
+    return np.stack([cx + b.radius * np.cos(theta), cy + b.radius * np.sin(theta)], axis=1)
+
+
 def ring_next(offsets) -> np.ndarray:
     """(N,) index of the next vertex of each vertex's ring."""
     offsets = np.asarray(offsets)

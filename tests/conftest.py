@@ -30,7 +30,7 @@ DROP_AXIS = 1e-3  # m: how far a blob dropped straight onto a level floor strays
 HEAD_ON_E1 = 0.8  # hard blobs head-on at e = 1 part at least this × their approach speed ...
 HEAD_ON_E0 = 0.3  # ... and at e = 0 at most this
 BLOB_PENETRATION = 2e-3  # m: deepest vertex inside another blob in a settled pile (1% of r = 0.2 m)
-STACK_REST_VERTEX = 5e-3  # m/s: fastest vertex of the settled stack.toml with sleeping off (issue 12's target;
+STACK_REST_VERTEX = 5e-3  # m/s: fastest vertex of the settled stack.toml with sleeping off (the target;
 #   measured 0.00 in second 12-13 with stick points, 0.87 mm/s before them and 53 before the velocity stage)
 LOADED_AREA = 0.03  # relative area error of a light blob under 150× heavier ones, after impact
 GOLDEN_ATOL = 1e-9  # m: fresh runs vs the stored golden trajectories (same versions: bit-identical)
@@ -51,7 +51,7 @@ SPIN_KEPT = 1e-9  # relative: a free blob's spin after 10 s at damping 0 (exact 
 ROLL_32 = 0.85  # a hard blob rolling down 10°, as a fraction of a ring's g sin θ / 2: at least this at 32 vertices
 ROLL_128 = 0.90  # ... and at 128
 ROLL_SLIDE = 0.05  # ... and not above 1 by more than this (it would be sliding, not rolling)
-PILE_REST_CENTRE = 2e-3  # m/s: fastest blob centre of a settled pile with sleeping off (issue 12's target) ...
+PILE_REST_CENTRE = 2e-3  # m/s: fastest blob centre of a settled pile with sleeping off (the target) ...
 PILE_REST_VERTEX = 20e-3  # m/s: ... and fastest vertex
 PILE_ASLEEP = 0.9  # share of a settled pile's blobs asleep with sleeping on (the default)
 LAYOUT_REST_CENTRE = 1e-3  # m/s: fastest centre of a pile of tools/piles.LAYOUTS about 12 s after it landed ...
@@ -62,7 +62,7 @@ DRIVEN_MOMENTUM = 1e-9  # relative: momentum F T and angular momentum τ T (abou
 DRIVEN_SLOPE = 0.1  # m/s: the least speed a ring on a 10° slope climbs or rolls back at, under a torque 20% above
 #                     or below m g R sin θ (measured 0.54 and 0.66 m/s over seconds 2-6)
 GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob on a fixed floor over 3 s
-#                  (issue "Worlds that move"; measured 9.4e-14: round-off)
+#                  (measured 9.4e-14: round-off)
 WALL_HOLD = 1e-3  # m: how far a sticky blob whose adhesion holds moves on a wall over 5 s (measured 0.31 mm at
 #                   300 N/m, the centre still settling; 7.5 m at 100 N/m, which does not hold)
 FLAT_TOP_HOLD = (0.3, 0.5)  # the load a flat-topped blob hanging by its face lets go at, over adhesion × the face's

@@ -1,4 +1,4 @@
-"""Adhesion (issue "What Gish does"): a sticky blob hangs from a ceiling until its load passes adhesion × its contact
+"""Adhesion: a sticky blob hangs from a ceiling until its load passes adhesion × its contact
 length, and lets go on command; it stays on a wall when its adhesion holds and slides when it does not; it never
 makes energy (a bouncy drop onto a sticky floor, a pull off it); two sticky blobs stay together, momentum kept; and
 the Gish level (scenes/gish_level.toml) does what it says, resumes mid-climb bit for bit, on any thread count."""

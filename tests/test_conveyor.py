@@ -1,4 +1,4 @@
-"""Conveyor surfaces (`surface_velocity`, issue "Worlds that move"): friction acts on the slip relative
+"""Conveyor surfaces (`surface_velocity`): friction acts on the slip relative
 to the moving surface, so a scene on a belt is the same scene on a fixed floor seen from a frame moving
 with the belt."""
 

@@ -1,4 +1,4 @@
-"""Driving forces and torques on blobs (issue "What Gish does"): `force` and `torque`, constant or scheduled
+"""Driving forces and torques on blobs: `force` and `torque`, constant or scheduled
 (a player's input), give the momentum and angular momentum they should, resume and thread counts change no bit,
 and a torque rolls a ring up a slope or lets it roll back."""
 

@@ -1,5 +1,4 @@
-"""A container (a circle with inside = true) turned by its surface velocity: a rotating drum (issue
-"Worlds that move")."""
+"""A container (a circle with inside = true) turned by its surface velocity: a rotating drum."""
 
 from pathlib import Path
 

@@ -1,5 +1,5 @@
-"""Nothing lost, nothing half-true: one regression test per defect the hostile test found
-(issue "Nothing lost, nothing half-true"), numbered as there."""
+"""Trajectory files and resume: what a run writes is complete or says it is not, a full disk or a signal keeps
+what was written, and a resumed run continues it bit for bit (one regression test per defect found)."""
 
 import os
 import signal
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import cli, start_run
 
-import blobcli.io.h5md as h5md
+import blobcli.io.h5md.writer as h5md_writer
 import blobcli.io.interrupts as interrupts
 import blobcli.io.outputs as outputs
 import blobcli.io.run as run_module
@@ -46,7 +46,7 @@ def frames_of(path):
 
 
 def small_blocks(monkeypatch):
-    monkeypatch.setattr(h5md, "BLOCK_BYTES", 1)  # one frame per block: many flushes, many copy steps
+    monkeypatch.setattr(h5md_writer, "BLOCK_BYTES", 1)  # one frame per block: many flushes, many copy steps
 
 
 def pending_after(monkeypatch, calls: int, signum=signal.SIGINT):
@@ -61,7 +61,7 @@ def pending_after(monkeypatch, calls: int, signum=signal.SIGINT):
 
 
 # 1 ---------------------------------------------------------------------------------------
-def test_1_a_second_run_on_the_same_output_is_refused_naming_the_first(tmp_path):
+def test_a_second_run_on_the_same_output_is_refused_naming_the_first(tmp_path):
     out = tmp_path / "c.h5"
     first = start_run([scene_file(tmp_path, LONG)], out)  # a first block of frames is on disk
     try:
@@ -75,7 +75,7 @@ def test_1_a_second_run_on_the_same_output_is_refused_naming_the_first(tmp_path)
     assert n > 1 and not complete and restart  # the first run's file is whole
 
 
-def test_1_the_lock_is_released_when_a_run_is_killed(tmp_path):
+def test_the_lock_is_released_when_a_run_is_killed(tmp_path):
     out = tmp_path / "k.h5"
     proc = start_run([scene_file(tmp_path, LONG)], out, min_bytes=1 << 16)
     proc.kill()
@@ -86,7 +86,7 @@ def test_1_the_lock_is_released_when_a_run_is_killed(tmp_path):
 
 
 # 2 ---------------------------------------------------------------------------------------
-def test_2_interrupt_while_an_in_place_resume_copies_leaves_the_original(tmp_path, monkeypatch):
+def test_interrupt_while_an_in_place_resume_copies_leaves_the_original(tmp_path, monkeypatch):
     small_blocks(monkeypatch)
     scene = load_scene(scene_file(tmp_path))
     path = tmp_path / "r.h5"
@@ -100,7 +100,7 @@ def test_2_interrupt_while_an_in_place_resume_copies_leaves_the_original(tmp_pat
     assert not (tmp_path / "r.h5.partial").exists()
 
 
-def test_2_interrupt_after_the_copy_leaves_a_longer_resumable_file(tmp_path, monkeypatch):
+def test_interrupt_after_the_copy_leaves_a_longer_resumable_file(tmp_path, monkeypatch):
     small_blocks(monkeypatch)
     scene = load_scene(scene_file(tmp_path))
     path = tmp_path / "r.h5"
@@ -113,7 +113,7 @@ def test_2_interrupt_after_the_copy_leaves_a_longer_resumable_file(tmp_path, mon
     assert n == 26 and not complete and restart
 
 
-def test_2_a_resumed_file_stopped_before_its_next_frame_keeps_its_restart(tmp_path, monkeypatch):
+def test_a_resumed_file_stopped_before_its_next_frame_keeps_its_restart(tmp_path, monkeypatch):
     scene = load_scene(scene_file(tmp_path))
     path = tmp_path / "r.h5"
     pending_after(monkeypatch, 20)
@@ -125,7 +125,7 @@ def test_2_a_resumed_file_stopped_before_its_next_frame_keeps_its_restart(tmp_pa
 
 
 # 3 ---------------------------------------------------------------------------------------
-def test_3_interrupt_before_the_first_step_leaves_an_older_file_alone(tmp_path, monkeypatch):
+def test_interrupt_before_the_first_step_leaves_an_older_file_alone(tmp_path, monkeypatch):
     path = tmp_path / "old.h5"
     assert cli("run", scene_file(tmp_path), "-o", path, "-q")[0] == 0
     before = path.read_bytes()
@@ -135,7 +135,7 @@ def test_3_interrupt_before_the_first_step_leaves_an_older_file_alone(tmp_path, 
     assert path.read_bytes() == before and not (tmp_path / "old.h5.partial").exists()
 
 
-def test_3_a_crash_inside_the_loop_is_never_marked_complete(tmp_path, monkeypatch):
+def test_a_crash_inside_the_loop_is_never_marked_complete(tmp_path, monkeypatch):
     real_advance, calls = run_module.advance, {"n": 0}
 
     def crashing_advance(*args, **kwargs):  # one step per call here: the scene records every step
@@ -151,7 +151,7 @@ def test_3_a_crash_inside_the_loop_is_never_marked_complete(tmp_path, monkeypatc
     assert len(t["particles/blobs/position/step"]) == 4
 
 
-def test_3_out_of_memory_inside_the_loop_is_a_failed_run(tmp_path, monkeypatch):
+def test_out_of_memory_inside_the_loop_is_a_failed_run(tmp_path, monkeypatch):
     def no_memory(*args, **kwargs):
         raise MemoryError
     monkeypatch.setattr(run_module, "advance", no_memory)
@@ -161,7 +161,7 @@ def test_3_out_of_memory_inside_the_loop_is_a_failed_run(tmp_path, monkeypatch):
 
 
 # 4 ---------------------------------------------------------------------------------------
-def test_4_a_full_disk_keeps_the_frames_written_and_says_so(tmp_path, monkeypatch):
+def test_a_full_disk_keeps_the_frames_written_and_says_so(tmp_path, monkeypatch):
     small_blocks(monkeypatch)
     real, calls = os.statvfs, {"n": 0}
 
@@ -171,18 +171,18 @@ def test_4_a_full_disk_keeps_the_frames_written_and_says_so(tmp_path, monkeypatc
     def statvfs(path):
         calls["n"] += 1
         return real(path) if calls["n"] <= 10 else Full()
-    monkeypatch.setattr(h5md.os, "statvfs", statvfs)
+    monkeypatch.setattr(h5md_writer.os, "statvfs", statvfs)
     code, out, err = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 1 and "no space left on the disk" in err and "kept the 10 frames" in err
     n, complete, restart = frames_of(tmp_path / "o.h5")
     assert n == 10 and not complete and restart
     assert not (tmp_path / "o.h5.partial").exists()
-    monkeypatch.setattr(h5md.os, "statvfs", real)  # room again: it resumes
+    monkeypatch.setattr(h5md_writer.os, "statvfs", real)  # room again: it resumes
     assert cli("run", scene_file(tmp_path), "--resume", tmp_path / "o.h5", "-q")[0] == 0
 
 
 @pytest.mark.slow
-def test_4_a_real_full_file_system(tmp_path):
+def test_a_real_full_file_system(tmp_path):
     """On a 12 MiB tmpfs: room for two blocks of the pile (needs root and mount; skipped where neither is to be had)."""
     mnt = tmp_path / "tiny"
     mnt.mkdir()
@@ -199,7 +199,7 @@ def test_4_a_real_full_file_system(tmp_path):
 
 
 # 5, 6 ------------------------------------------------------------------------------------
-def test_5_a_nul_in_a_path_or_name_is_refused(tmp_path):
+def test_a_nul_in_a_path_or_name_is_refused(tmp_path):
     victim = tmp_path / "victim.txt"
     victim.write_text("keep me")
     for text in (f'[output]\npath = "{victim}\\u0000.h5"\n', '[scene]\nname = "a\\u0000b"\n'):
@@ -208,7 +208,7 @@ def test_5_a_nul_in_a_path_or_name_is_refused(tmp_path):
     assert victim.read_text() == "keep me"
 
 
-def test_6_a_symlink_planted_at_the_partial_is_never_followed(tmp_path):
+def test_a_symlink_planted_at_the_partial_is_never_followed(tmp_path):
     target = tmp_path / "target.txt"
     target.write_text("keep me")
     (tmp_path / "o.h5.partial").symlink_to(target)
@@ -218,20 +218,20 @@ def test_6_a_symlink_planted_at_the_partial_is_never_followed(tmp_path):
 
 
 # 7 ---------------------------------------------------------------------------------------
-def test_7_a_signal_during_the_final_rename_is_held_until_the_file_is_in_place(tmp_path, monkeypatch):
+def test_a_signal_during_the_final_rename_is_held_until_the_file_is_in_place(tmp_path, monkeypatch):
     real = outputs.publish
 
     def publish_with_signal(partial, path):
         os.kill(os.getpid(), signal.SIGTERM)  # arrives inside the deferred section
         real(partial, path)
-    monkeypatch.setattr(h5md, "publish", publish_with_signal)
+    monkeypatch.setattr(h5md_writer, "publish", publish_with_signal)
     code, out, _ = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
     assert code == 0 and frames_of(tmp_path / "o.h5") == (41, True, True)
     assert not (tmp_path / "o.h5.partial").exists()
 
 
 # 8, 14 -----------------------------------------------------------------------------------
-def test_8_resume_of_a_complete_run_asks_for_more_steps_and_keeps_restart(tmp_path):
+def test_resume_of_a_complete_run_asks_for_more_steps_and_keeps_restart(tmp_path):
     scene = scene_file(tmp_path, ONE.replace("steps = 40", "steps = 10") + "[output]\nevery = 3\n")
     path = tmp_path / "ev.h5"
     assert cli("run", scene, "-o", path, "-q")[0] == 0
@@ -241,7 +241,7 @@ def test_8_resume_of_a_complete_run_asks_for_more_steps_and_keeps_restart(tmp_pa
     assert frames_of(path) == (7, True, True)
 
 
-def test_14_resume_with_fewer_steps_than_done_is_refused(tmp_path, monkeypatch):
+def test_resume_with_fewer_steps_than_done_is_refused(tmp_path, monkeypatch):
     pending_after(monkeypatch, 30)
     path = tmp_path / "p.h5"
     simulate(load_scene(scene_file(tmp_path)), path)
@@ -276,13 +276,13 @@ BLOB = '[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n'
     ('[scene]\nname = "../escape"\n' + BLOB, "scene.name: must not contain /"),
     (BLOB + '[[static]]\nkind = "segment"\na = [0.0, 0.0]\nb = [5e-324, 0.0]\n', "static[0].b: segment must be at least"),
 ])
-def test_9_11_15_bad_numbers_and_names_are_refused_with_one_line(tmp_path, text, message):
+def test_bad_numbers_and_names_are_refused_with_one_line(tmp_path, text, message):
     code, out, err = cli("run", scene_file(tmp_path, text), "-o", tmp_path / "o.h5", "-q")
     assert code == 2 and message in err and "Traceback" not in err, err
     assert not list(tmp_path.glob("o.h5*"))
 
 
-def test_10_a_huge_polygon_is_refused_before_the_quadratic_check(tmp_path):
+def test_a_huge_polygon_is_refused_before_the_quadratic_check(tmp_path):
     pts = ", ".join(f"[{np.cos(t):.5f}, {np.sin(t):.5f}]" for t in np.linspace(0, 6.28, 100_001))
     t0 = time.perf_counter()
     code, _, err = cli("check", scene_file(tmp_path, f"[[blob]]\npoints = [{pts}]\n"))
@@ -290,20 +290,20 @@ def test_10_a_huge_polygon_is_refused_before_the_quadratic_check(tmp_path):
     assert time.perf_counter() - t0 < 30  # was 475 s
 
 
-def test_10_check_reads_at_most_the_size_limit():
+def test_check_reads_at_most_the_size_limit():
     t0 = time.perf_counter()
     code, _, err = cli("check", "/dev/zero")
     assert code == 2 and "larger than" in err and time.perf_counter() - t0 < 10
 
 
-def test_11_overrides_that_overflow_are_refused(tmp_path):
+def test_overrides_that_overflow_are_refused(tmp_path):
     code, _, err = cli("run", scene_file(tmp_path), "--steps", str(10**20), "-o", tmp_path / "o.h5")
     assert code == 2 and "--steps" in err and "at most 1,000,000,000" in err
     code, _, err = cli("run", scene_file(tmp_path), "--duration", "1e300", "-o", tmp_path / "o.h5")
     assert code == 2 and "--duration" in err
 
 
-def test_11_bad_output_places_are_refused_before_any_work(tmp_path):
+def test_bad_output_places_are_refused_before_any_work(tmp_path):
     scene = scene_file(tmp_path)
     (tmp_path / "adir").mkdir()
     (tmp_path / "afile").write_text("x")
@@ -330,7 +330,7 @@ def test_11_bad_output_places_are_refused_before_any_work(tmp_path):
     assert not (tmp_path / "ok.h5").exists()
 
 
-def test_11_a_read_only_place_is_refused(tmp_path):
+def test_a_read_only_place_is_refused(tmp_path):
     ro = tmp_path / "ro"
     ro.mkdir()
     ro.chmod(0o555)
@@ -345,7 +345,7 @@ def test_11_a_read_only_place_is_refused(tmp_path):
 
 # 12 --------------------------------------------------------------------------------------
 @pytest.mark.slow
-def test_12_thousands_of_coincident_blobs_stop_with_a_reason_not_exhausted_memory(tmp_path):
+def test_thousands_of_coincident_blobs_stop_with_a_reason_not_exhausted_memory(tmp_path):
     text = ('[scene]\nsteps = 5\n[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.01\nvertices = 3\n'
             'grid = [100, 50]\nspacing = [1e-6, 1e-6]\n')
     code, out, err = cli("run", scene_file(tmp_path, text), "-o", tmp_path / "o.h5", "-q")
@@ -355,7 +355,7 @@ def test_12_thousands_of_coincident_blobs_stop_with_a_reason_not_exhausted_memor
 
 # 13 --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_13_an_early_signal_exits_130_without_a_traceback(tmp_path, signum):
+def test_an_early_signal_exits_130_without_a_traceback(tmp_path, signum):
     proc = subprocess.Popen([sys.executable, "-m", "blobcli", "run", str(scene_file(tmp_path, LONG)), "-o",
                              str(tmp_path / "o.h5"), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(0.5)  # inside main (its handlers are installed first), before the loop
@@ -364,7 +364,7 @@ def test_13_an_early_signal_exits_130_without_a_traceback(tmp_path, signum):
     assert proc.returncode == 130 and "Traceback" not in err, err
 
 
-def test_13_a_signal_whose_raise_python_swallows_is_kept_quietly():
+def test_a_signal_whose_raise_python_swallows_is_kept_quietly():
     """A signal that lands while a __del__ runs (llvmlite's, as numba compiles) had its Interrupted swallowed,
     a traceback printed, and the run went on (CI: killed after 120 s): now it stays pending, silently."""
     code = ("import os, signal\n"
@@ -380,7 +380,7 @@ def test_13_a_signal_whose_raise_python_swallows_is_kept_quietly():
 
 
 # 14 --------------------------------------------------------------------------------------
-def test_14_small_things(tmp_path):
+def test_small_things(tmp_path):
     traj = tmp_path / "t.h5"
     assert cli("run", scene_file(tmp_path), "-o", traj, "-q")[0] == 0
     code, out, _ = cli("render", traj, "-o", tmp_path / "adir")
@@ -398,7 +398,7 @@ def test_14_small_things(tmp_path):
     assert code == 2 and "restart/position has shape (3, 2)" in err
 
 
-def test_14_no_runtime_warnings_leak(tmp_path):
+def test_no_runtime_warnings_leak(tmp_path):
     text = ONE.replace("radius = 0.5", "radius = 0.5\nvelocity = [0.0, -900000.0]")
     r = subprocess.run([sys.executable, "-m", "blobcli", "run", str(scene_file(tmp_path, text)), "-o",
                         str(tmp_path / "o.h5"), "-q"], capture_output=True, text=True, timeout=120)
@@ -406,7 +406,7 @@ def test_14_no_runtime_warnings_leak(tmp_path):
 
 
 # 15 --------------------------------------------------------------------------------------
-def test_15_check_warns_about_blobs_spawned_inside_colliders_or_each_other(tmp_path):
+def test_check_warns_about_blobs_spawned_inside_colliders_or_each_other(tmp_path):
     text = ONE.replace("center = [0.0, 1.0]", "center = [0.0, 0.2]") + BLOB.replace("1.0", "0.8")
     code, _, err = cli("check", scene_file(tmp_path, text))
     assert code == 0
@@ -415,7 +415,7 @@ def test_15_check_warns_about_blobs_spawned_inside_colliders_or_each_other(tmp_p
     assert cli("check", ROOT / "scenes" / "pile.toml")[2] == ""  # touching exactly is not overlapping
 
 
-def test_15_a_run_that_ends_inside_out_says_so_and_records_it(tmp_path, monkeypatch):
+def test_a_run_that_ends_inside_out_says_so_and_records_it(tmp_path, monkeypatch):
     real_advance = run_module.advance
 
     def flipping_advance(state, model, params, *args, **kwargs):
@@ -431,7 +431,7 @@ def test_15_a_run_that_ends_inside_out_says_so_and_records_it(tmp_path, monkeypa
     assert h5py.File(tmp_path / "o.h5").attrs["warnings"] == "1 blob inside out (solo) at the end"
 
 
-def test_15_self_intersecting_rings_are_found():
+def test_self_intersecting_rings_are_found():
     from blobcli import build, parse_scene
     from blobcli.sim.measure import shape_warning
     model, state = build(parse_scene("[[blob]]\npoints = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]\n"))

@@ -98,8 +98,8 @@ def test_schedules_reach_random_copies_by_name():
 def placed_by_testing_every_disc(scene):
     """Random addition as it was written first (every new disc tested against every disc placed before it): the
     reference the grid must agree with, draw for draw."""
+    from blobcli.geometry import blob_points
     from blobcli.scene.placement import MAX_TRIES, ring_at_origin
-    from blobcli.sim.model import blob_points
     discs = []
     for b in scene.blobs:
         if b.count == 1:

@@ -126,8 +126,8 @@ def test_piles_unlike_the_benchs_own_come_to_rest(layout):
 def test_piles_unlike_the_benchs_own_fall_asleep(layout, seconds):
     """With sleeping on, a 60-blob pile on a tilted floor is asleep at 14 s, and a 300-blob pile (its last blob
     lands at about 3 s) 10 s after it."""
-    from blobcli.tools.piles import LAYOUTS, sleep_setting
     from blobcli.scene.schema import parse_scene
+    from blobcli.tools.piles import LAYOUTS, sleep_setting
     s = sleep_setting(parse_scene(LAYOUTS[layout][0](), layout), True)
     model, state = build(s)
     params = build_params(s)

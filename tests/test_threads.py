@@ -1,4 +1,4 @@
-"""How many threads a run uses (issue "Fast on a busy machine"): the choice, --threads, and the same
+"""How many threads a run uses: the choice, --threads, and the same
 bits whatever the count, changed call by call."""
 
 import os

@@ -42,7 +42,7 @@
  * PER_VERTEX per vertex. A ring whose chunks were all apart keeps that shape as a skin (in_skin): while it
  * only moves rigidly and deforms a little from it, it is not measured again.
  *
- * What the iterations still leave crossed, bc_keep_rings_simple mends after them (below).
+ * What the iterations still leave crossed, bc_keep_rings_simple mends after them (impact_zones.c).
  *
  * Arrays (blobcore.h): positions (2, N), x of vertex i at [i], y at [N + i]; pairs (2, PER_VERTEX N): each
  * pair's vertex and edge (its first vertex); values (4, PER_VERTEX N): its side σ (±1, or UNDECIDED), its
@@ -54,42 +54,19 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "area.h"
 #include "parallel.h"
 #include "ring.h"
 #include "scratch.h"
+#include "self_chunks.h"
 #include "self_contact.h"
 
-#define CHUNK BC_SELF_CHUNK
 #define PER_VERTEX BC_SELF_PER_VERTEX
-#define ZONE_ROUNDS 4  /* rounds of impact zones before the whole ring moves rigidly for the substep */
-#define SUMS 9         /* columns of the zones' sums (move_zones_rigidly) */
 
 static const double GAP = 0.05;   /* × the mean rest edge: how close a vertex may come to an edge of its own ring */
-static const double REACH = 0.15; /* × the mean rest edge: pairs closer at the substep's start or end are kept */
-/* β = 75°: an arc whose edges all point within β of one axis cannot touch itself. cos β, cos 2β and sin 2β
- * as Python's math gives them for math.radians(75.0) (the bits the reference reads) */
-static const double CONE_COS = 0x1.0907dc193069p-2;
-static const double CONE_COS_2 = -0x1.bb67ae8584cabp-1;
-static const double CONE_SIN_2 = 0x1.fffffffffffffp-2;
 /* a pair acts only where the vertices free to move can move it: w > this × their largest w */
 static const double MIN_LEVER = 0.25;
 /* the side of a pair whose vertex has not yet faced its edge this substep */
 static const double UNDECIDED = 0.0;
-/* × the reach: how far from its predicted place the iterations may move a vertex of a ring whose chunks were all
- * apart before it is checked for crossings again */
-static const double STILL_SIMPLE = 0.25;
-enum { APART = 0, NEAR = 1 };  /* a ring's chunks this substep: all apart; some may meet */
-
-/* Rows of the chunk table (bcState.self_chunks, (CHUNK_ROWS, N), chunk c of ring o..e in column o + c CHUNK):
- * its box over both configurations, and for each configuration the cone its edges point in (axis a,
- * half-angle α as cos α and sin α) and its shortest edge, squared. The ring's skin (in_skin): in each
- * vertex's column, where it was about the ring's centre when the ring was last measured apart, and in the
- * ring's first column, how far apart its parts were then (G; 0: no skin). */
-enum {
-    BOX_X0 = 0, BOX_Y0 = 1, BOX_X1 = 2, BOX_Y1 = 3, AXIS_X = 4, AXIS_Y = 6, COS = 8, SIN = 10, SHORTEST2 = 12,
-    REF_X = 14, REF_Y = 15, SKIN = 16, CHUNK_ROWS = BC_SELF_CHUNK_ROWS
-};
 
 /* Vertex p against edge (j, j1) at positions x: s, its signed distance along the edge's outward normal;
  * t, where its foot falls along the edge, unclamped; d, its distance from the segment. d < 0: a
@@ -124,90 +101,6 @@ static inline bool crosses(const double *prev, const double *pos, int64_t N, int
     double ry = prev[N + p] + tau * (pos[N + p] - prev[N + p]) - y0;
     double along = rx * ex + ry * ey;
     return 0.0 <= along && along <= ex * ex + ey * ey;
-}
-
-/* Each chunk's box over the substep's start (prev) and end (pos) and, at each, its cone (about its chord
- * u) and shortest edge. */
-static void chunk_shapes(const double *prev, const double *pos, int64_t N, int64_t o, int64_t e, double *chunks) {
-    for (int64_t first = o; first < e; first += CHUNK) {
-        int64_t last = bc_imin(first + CHUNK, e);
-        int64_t end = last < e ? last : o;  /* the last edge's end */
-        double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-        for (int config = 0; config < 2; config++) {
-            const double *x = config == 0 ? prev : pos;
-            double ux = x[end] - x[first], uy = x[N + end] - x[N + first];
-            double u2 = ux * ux + uy * uy;
-            /* cos² α: the least (e · u)² / (|e|² |u|²); < 0: an edge turned back */
-            double cos2 = 1.0, shortest2 = INFINITY;
-            double ax = x[first], ay = x[N + first];
-            for (int64_t i = first + 1; i < last + 1; i++) {
-                int64_t j = i < e ? i : o;
-                double bx = x[j], by = x[N + j];
-                double ex = bx - ax, ey = by - ay;
-                double along = ex * ux + ey * uy, e2 = ex * ex + ey * ey;
-                shortest2 = bc_min(shortest2, e2);
-                cos2 = bc_min(cos2, along * fabs(along) / (e2 * u2));
-                x0 = bc_min(x0, bx);
-                y0 = bc_min(y0, by);
-                x1 = bc_max(x1, bx);
-                y1 = bc_max(y1, by);
-                ax = bx;
-                ay = by;
-            }
-            x0 = bc_min(x0, x[first]);
-            y0 = bc_min(y0, x[N + first]);
-            x1 = bc_max(x1, x[first]);
-            y1 = bc_max(y1, x[N + first]);
-            double u = sqrt(u2);
-            double cos_alpha = cos2 > 0.0 && u > 0.0 ? sqrt(cos2) : -1.0;
-            chunks[(AXIS_X + config) * N + first] = u > 0.0 ? ux / u : 1.0;
-            chunks[(AXIS_Y + config) * N + first] = u > 0.0 ? uy / u : 0.0;
-            chunks[(COS + config) * N + first] = cos_alpha;
-            chunks[(SIN + config) * N + first] = sqrt(bc_max(1.0 - cos_alpha * cos_alpha, 0.0));
-            chunks[(SHORTEST2 + config) * N + first] = shortest2;
-        }
-        chunks[BOX_X0 * N + first] = x0;
-        chunks[BOX_Y0 * N + first] = y0;
-        chunks[BOX_X1 * N + first] = x1;
-        chunks[BOX_Y1 * N + first] = y1;
-    }
-}
-
-/* The chunk after chunk c (its first vertex) in ring o..e. */
-static inline int64_t next_chunk(int64_t c, int64_t o, int64_t e) { return c + CHUNK < e ? c + CHUNK : o; }
-
-/* How far apart, at least, a vertex of chunk c (its first vertex) and an edge of chunk d not its own, or
- * the reverse, are at both ends of the substep (see above); 0 where they may come within reach: neighbours,
- * and a chunk alone, unless their edges point within 75° of one axis and are longer than reach / cos 75°
- * (then L_min cos 75°); others unless their boxes are farther apart than reach (then that gap). */
-static double chunks_apart_by(int64_t N, int64_t o, int64_t e, const double *chunks, int64_t c, int64_t d,
-                              double reach) {
-    bool after = next_chunk(c, o, e) == d, before = next_chunk(d, o, e) == c;
-    if (c == d || after || before) {
-        if (after && before) return 0.0;  /* two chunks: their arc is the whole ring */
-        double apart = INFINITY;
-        for (int config = 0; config < 2; config++) {
-            const double *shortest2 = chunks + (SHORTEST2 + config) * N;
-            apart = bc_min(apart, sqrt(bc_min(shortest2[c], shortest2[d])) * CONE_COS);
-            if (apart <= reach) return 0.0;
-            double cos_c = chunks[(COS + config) * N + c], sin_c = chunks[(SIN + config) * N + c];
-            double cos_d = chunks[(COS + config) * N + d], sin_d = chunks[(SIN + config) * N + d];
-            if (bc_min(cos_c, cos_d) < CONE_COS) return 0.0;  /* a chunk's own edges spread wider than the cone */
-            if (c == d) continue;
-            /* (α_c + α_d + θ) / 2 <= β: with α_c, α_d <= β, S = α_c + α_d is in [0, 2β] and θ <= 2β - S,
-             * both in [0, π], exactly when cos θ >= cos(2β - S) = cos 2β cos S + sin 2β sin S */
-            double cos_s = cos_c * cos_d - sin_c * sin_d, sin_s = sin_c * cos_d + cos_c * sin_d;
-            const double *axis_x = chunks + (AXIS_X + config) * N, *axis_y = chunks + (AXIS_Y + config) * N;
-            double cos_t = axis_x[c] * axis_x[d] + axis_y[c] * axis_y[d];
-            if (cos_t < CONE_COS_2 * cos_s + CONE_SIN_2 * sin_s) return 0.0;
-        }
-        return apart;
-    }
-    double gap = bc_max(bc_max(bc_max(chunks[BOX_X0 * N + c] - chunks[BOX_X1 * N + d],
-                                      chunks[BOX_X0 * N + d] - chunks[BOX_X1 * N + c]),
-                               chunks[BOX_Y0 * N + c] - chunks[BOX_Y1 * N + d]),
-                        chunks[BOX_Y0 * N + d] - chunks[BOX_Y1 * N + c]);
-    return gap > reach ? gap : 0.0;
 }
 
 /* Test every vertex of one run of the ring against every edge of another that is not its own; keep the
@@ -482,192 +375,6 @@ void bc_resolve_self_contacts(const bcContext *ctx, int hold, int reverse) {
             if (p < o || p >= e || j < o || j >= e) continue;  /* (never, for pairs this stage found) */
             resolve_pair(&r, m->orient[b], m->material[3 * b], m->material[3 * b + 1], p, j, bc_next_in_ring(j, o, e),
                          s->self_values, V, k);
-        }
-    });
-}
-
-/* Whether segments (a, a1) and (b, b1) cross or touch: each one's ends not strictly on one side of the
- * other's line, or all four on one line, with their boxes overlapping (geometry.first_crossing's test,
- * which `blobsim stress` judges rings by). */
-static inline bool segments_touch(const double *pos, int64_t N, int64_t a, int64_t a1, int64_t b, int64_t b1) {
-    int o1 = bc_turn(pos, N, a, a1, b), o2 = bc_turn(pos, N, a, a1, b1);
-    int o3 = bc_turn(pos, N, b, b1, a), o4 = bc_turn(pos, N, b, b1, a1);
-    if (!((o1 != o2 && o3 != o4) || (o1 == 0 && o2 == 0))) return false;
-    return bc_min(pos[a], pos[a1]) <= bc_max(pos[b], pos[b1])
-        && bc_min(pos[b], pos[b1]) <= bc_max(pos[a], pos[a1])
-        && bc_min(pos[N + a], pos[N + a1]) <= bc_max(pos[N + b], pos[N + b1])
-        && bc_min(pos[N + b], pos[N + b1]) <= bc_max(pos[N + a], pos[N + a1]);
-}
-
-/* Union of the zones of local vertices a and b (each zone's root: its smallest member). */
-static inline void join(int64_t *zone, int64_t a, int64_t b) {
-    while (zone[a] != a) a = zone[a];
-    while (zone[b] != b) b = zone[b];
-    if (a < b) zone[b] = a;
-    else if (b < a) zone[a] = b;
-}
-
-/* Join the zones of the ends of every two edges of ring o..e that cross or touch, and say whether any do
- * (with no `zone`, NULL, only say). Chunks as bc_find_self_contacts's, at pos, with no reach. zone: the
- * ring's vertices from 0, (e - o,). */
-static bool crossings_into_zones(const double *pos, int64_t N, int64_t o, int64_t e, double *chunks, int64_t *zone) {
-    chunk_shapes(pos, pos, N, o, e, chunks);
-    bool crossed = false;
-    for (int64_t c = o; c < e; c += CHUNK) {
-        for (int64_t d = c; d < e; d += CHUNK) {
-            if (chunks_apart_by(N, o, e, chunks, c, d, 0.0) > 0.0) continue;
-            for (int64_t a = c; a < bc_imin(c + CHUNK, e); a++) {
-                int64_t a1 = bc_next_in_ring(a, o, e);
-                for (int64_t b = d != c ? d : a + 2; b < bc_imin(d + CHUNK, e); b++) {
-                    int64_t b1 = bc_next_in_ring(b, o, e);
-                    if (b == a || b1 == a || b == a1 || !segments_touch(pos, N, a, a1, b, b1)) continue;
-                    if (zone == NULL) return true;
-                    crossed = true;
-                    join(zone, a - o, a1 - o);
-                    join(zone, a - o, b - o);
-                    join(zone, a - o, b1 - o);
-                }
-            }
-        }
-    }
-    return crossed;
-}
-
-/* Each zone of two or more vertices moves rigidly from where it was when the substep began: its centre as
- * its vertices' mean moved, turned by the angle θ that best fits their motion (2D Procrustes,
- * tan θ = Σ q × r / Σ q · r, q and r about the centre before and after, as integrate's update_velocities).
- * The zone's momentum is kept, and its relative motion, the part that crossed the ring, is gone. A zone
- * with a vertex a fixed collider pushed this substep (held > 0) stays where it was when the substep began
- * instead (moved, it would go into that collider, whose push it undid); one that a moving collider pushed
- * (wall_velocity: contact_material's rows 4 and 5, the surface's velocity there) is left as it is: where
- * the substep began is inside the collider now, whose push keeps the last word. sums: (e - o, SUMS), per
- * zone root: Σ x, Σ y, Σ x_prev, Σ y_prev, members, Σ q × r, Σ q · r, Σ held, members a moving collider
- * holds. */
-static void move_zones_rigidly(double *pos, const double *prev, const double *held, const double *wall_velocity,
-                               int64_t N, int64_t o, int64_t e, int64_t *zone, double *sums) {
-    int64_t n = e - o;
-    for (int64_t k = 0; k < n; k++)
-        for (int column = 0; column < SUMS; column++) sums[k * SUMS + column] = 0.0;
-    for (int64_t k = 0; k < n; k++) {
-        int64_t root = k;
-        while (zone[root] != root) root = zone[root];
-        zone[k] = root;  /* (flattened: the root of every member) */
-        int64_t i = o + k;
-        double *sum = sums + root * SUMS;
-        sum[0] += pos[i];
-        sum[1] += pos[N + i];
-        sum[2] += prev[i];
-        sum[3] += prev[N + i];
-        sum[4] += 1.0;
-        sum[7] += held[i];
-        if (held[i] != 0.0 && (wall_velocity[4 * N + i] != 0.0 || wall_velocity[5 * N + i] != 0.0)) sum[8] += 1.0;
-    }
-    for (int64_t k = 0; k < n; k++) {
-        int64_t i = o + k;
-        double *sum = sums + zone[k] * SUMS;
-        double members = sum[4];
-        if (members < 2.0) continue;
-        double rx = pos[i] - sum[0] / members, ry = pos[N + i] - sum[1] / members;
-        double qx = prev[i] - sum[2] / members, qy = prev[N + i] - sum[3] / members;
-        sum[5] += qx * ry - qy * rx;
-        sum[6] += qx * rx + qy * ry;
-    }
-    for (int64_t k = 0; k < n; k++) {
-        int64_t i = o + k;
-        const double *sum = sums + zone[k] * SUMS;
-        double members = sum[4];
-        if (members < 2.0) continue;
-        if (sum[8] > 0.0) continue;  /* a moving collider holds it: its push has the last word */
-        if (sum[7] > 0.0) {
-            pos[i] = prev[i];
-            pos[N + i] = prev[N + i];
-            continue;
-        }
-        double theta = atan2(sum[5], sum[6]);
-        double cos_theta = cos(theta), sin_theta = sin(theta);
-        double qx = prev[i] - sum[2] / members, qy = prev[N + i] - sum[3] / members;
-        pos[i] = sum[0] / members + cos_theta * qx - sin_theta * qy;
-        pos[N + i] = sum[1] / members + sin_theta * qx + cos_theta * qy;
-    }
-}
-
-/* Whether a collider pushed any vertex of ring o..e this substep. */
-static inline bool any_held(const double *held, int64_t o, int64_t e) {
-    for (int64_t i = o; i < e; i++)
-        if (held[i] != 0.0) return true;
-    return false;
-}
-
-/* The fail-safe after the substep's constraints (Bridson, Fedkiw & Anderson 2002's impact zones): where two
- * edges of a ring now cross or touch, the ends of both move rigidly from where they were when the substep
- * began, where they did not; zones that meet are joined, and after ZONE_ROUNDS rounds the whole ring moves
- * rigidly (zones a collider pushed: see move_zones_rigidly). A ring that began the substep simple ends it
- * simple (unless a moving collider holds the crossing), with its momentum (unless a collider holds the
- * zone); what is lost is the zones' relative motion (kinetic energy is never made). A ring that began the
- * substep crossed is left to the constraints, which untangle it (below). With `exact_area` (method kot), a
- * ring the zones moved and no collider touches is then projected onto its target area again, unless that
- * crosses it again: the area stays exact wherever it can. zoned[b] counts the substeps in which ring b
- * needed this. A zone moved rigidly may go into a collider (a moving one has gone on since the substep
- * began): the statics act again after it (the driver).
- *
- * A ring whose chunks were all apart (bc_find_self_contacts: near[b] = APART) and whose vertices the
- * iterations moved less than STILL_SIMPLE × the reach from their predicted places x_prev + h v is not
- * checked: its parts were farther apart than the reach, and came closer by less than half of it.
- *
- * held: s->contact_depth, wall_velocity: s->contact_material. The zones (zone, sums, kept) are ring b's
- * slices of the scratch, from its first vertex on. */
-void bc_keep_rings_simple(const bcContext *ctx, double h, int exact_area) {
-    const bcModel *m = ctx->m;
-    bcState *s = ctx->s;
-    bcScratch *w = ctx->w;
-    const int64_t N = m->vertex_count;
-    double *pos = s->position;
-    const double *prev = s->previous, *vel = s->velocity, *held = s->contact_depth;
-    BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t b = 0; b < m->blob_count; b++), {
-        if (!s->awake[b]) continue;
-        int64_t o = m->offsets[b], e = m->offsets[b + 1];
-        int64_t n = e - o;
-        if (s->self_near[b] == APART) {
-            double bound = STILL_SIMPLE * REACH * m->rest_perimeter[b] / (double)n;
-            bound = bound * bound;
-            double moved = 0.0;
-            for (int64_t i = o; i < e; i++) {
-                double dx = pos[i] - prev[i] - h * vel[i], dy = pos[N + i] - prev[N + i] - h * vel[N + i];
-                moved = bc_max(moved, dx * dx + dy * dy);
-            }
-            if (moved < bound) continue;
-        }
-        if (!crossings_into_zones(pos, N, o, e, s->self_chunks, NULL)) continue;
-        /* it began the substep crossed (so given, or a moving collider held a crossing): there is no simple shape
-         * to come back to, and the constraints untangle it (kot gives the lobe of positive area its area back and
-         * shrinks the other), which zones moved from a crossed start would undo every substep */
-        if (crossings_into_zones(prev, N, o, e, s->self_chunks, NULL)) continue;
-        s->zoned[b] += 1;
-        int64_t *zone = w->self_zone + o;
-        double *sums = w->self_sums + SUMS * o;
-        for (int64_t k = 0; k < n; k++) zone[k] = k;
-        crossings_into_zones(pos, N, o, e, s->self_chunks, zone);
-        bool crossing = true;
-        for (int rounds = 0; rounds < ZONE_ROUNDS && crossing; rounds++) {
-            move_zones_rigidly(pos, prev, held, s->contact_material, N, o, e, zone, sums);
-            crossing = crossings_into_zones(pos, N, o, e, s->self_chunks, zone);
-        }
-        if (crossing) {  /* still crossing: the whole ring, one zone */
-            for (int64_t k = 0; k < n; k++) zone[k] = 0;
-            move_zones_rigidly(pos, prev, held, s->contact_material, N, o, e, zone, sums);
-        }
-        if (!exact_area || any_held(held, o, e)) continue;
-        double *kept = w->self_kept + 2 * o;  /* (2, n): the ring before the area's projection */
-        for (int64_t k = 0; k < n; k++) {
-            kept[k] = pos[o + k];
-            kept[n + k] = pos[N + o + k];
-        }
-        bc_project_area(pos, N, m->inv_mass, o, e, m->target_area[b]);
-        if (crossings_into_zones(pos, N, o, e, s->self_chunks, NULL)) {
-            for (int64_t k = 0; k < n; k++) {
-                pos[o + k] = kept[k];
-                pos[N + o + k] = kept[n + k];
-            }
         }
     });
 }

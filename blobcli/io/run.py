@@ -77,7 +77,7 @@ def simulate(scene: Scene, path: str | Path | None = None, progress: bool = Fals
              threads: int | None = None) -> RunResult:
     """Run `scene` and write its trajectory to `path` (default: the scene's output path).
 
-    With `resume` (an interrupted run's file, checked with h5md.resume_problems), the new
+    With `resume` (an interrupted run's file, checked with h5md/restart.py: resume_problems), the new
     file starts with that run's frames and continues from its last state: the result is
     bit for bit the trajectory of a run that was never interrupted. Raises OutputError
     (before any work) when `path` cannot be written or another run holds it. A `<path>.partial`

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from ..geometry import blob_points
+
 MAX_TRIES = 10_000  # draws for one copy before the placement gives up
 
 
@@ -35,7 +37,6 @@ class PlacementError(ValueError):
 
 def ring_at_origin(b) -> np.ndarray:
     """The blob's ring with its vertex average at the origin."""
-    from ..sim.model import blob_points
     ring = blob_points(b)
     return ring - ring.mean(axis=0)
 
@@ -57,7 +58,6 @@ def _blocked_by_statics(ring: np.ndarray, centre: np.ndarray, radius: float, sta
 
 def random_centres(scene) -> dict[int, np.ndarray]:
     """{blob table index: (count, 2) centres} for every table with count > 1, in scene order."""
-    from ..sim.model import blob_points
     discs = []  # (x, y, r) of every blob placed or fixed
     for b in scene.blobs:
         if b.count > 1:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..colliders import COLLIDERS
-from ..geometry import depth_inside_polygon
+from ..geometry import blob_points, depth_inside_polygon
 from .schema import Scene
 
 MAX_PAIR_CHECK_BLOBS = 2000  # blob-blob overlap is checked pairwise up to this many blobs
@@ -22,7 +22,6 @@ SMALL = 20.0  # a blob whose radius is under SMALL × g h² (how far gravity mov
 def _rings(scene: Scene):
     """(name, index in scene.blobs, polygon (n, 2)) of every blob after grids; not the random copies of
     a table with count, which are placed clear of every blob and collider (scene/placement.py)."""
-    from ..sim.model import blob_points  # numpy only
     for i, b in enumerate(scene.blobs):
         if b.count > 1:
             continue
@@ -68,7 +67,6 @@ def small_blob_warnings(scene: Scene) -> list[str]:
     h = s.dt / s.substeps
     reach = SMALL * float(np.hypot(*s.gravity)) * h * h  # m
     out = []
-    from ..sim.model import blob_points  # numpy only
     for i, b in enumerate(scene.blobs):
         ring = blob_points(b)
         r = float(np.hypot(*(ring - ring.mean(axis=0)).T).max())

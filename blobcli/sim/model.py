@@ -16,9 +16,9 @@ import numpy as np
 
 from ..colliders import COLLIDERS, SOLVERS, default_pivot
 from ..core import Views, load
-from ..geometry import ring_next, signed_area
+from ..geometry import blob_points, ring_next, signed_area
 from ..scene.placement import random_centres, ring_at_origin
-from ..scene.schema import BlobDef, Scene, StaticDef, expanded_names
+from ..scene.schema import Scene, StaticDef, expanded_names
 
 # The compiled core's sizes and codes (its headers are their one home)
 _FFI, _CORE = load()
@@ -258,15 +258,6 @@ class State(NamedTuple):
     def vel(self) -> np.ndarray:
         """(N, 2) m/s: the velocities, vertex by vertex (a view)."""
         return self.velocity.T
-
-
-def blob_points(b: BlobDef) -> np.ndarray:
-    """The blob's polygon as an (n, 2) array, in the winding the user gave."""
-    if b.points is not None:
-        return np.array(b.points, dtype=np.float64)
-    theta = 2.0 * np.pi * np.arange(b.vertices) / b.vertices
-    cx, cy = b.center or (0.0, 0.0)  # no centre: a blob with count, placed at random
-    return np.stack([cx + b.radius * np.cos(theta), cy + b.radius * np.sin(theta)], axis=1)
 
 
 def self_contact_records(vertices: int, blobs: int) -> tuple:

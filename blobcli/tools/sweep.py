@@ -26,7 +26,7 @@ import threading
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from ..scene.schema import MAX_SCENE_BYTES, TABLES, SceneError, _Problems, fmt_value, load_scene, parse_scene
+from ..scene.schema import MAX_SCENE_BYTES, TABLES, Problems, SceneError, fmt_value, load_scene, parse_scene
 from ..scene.tomlpos import key_lines
 
 MODES = ("grid", "zip")
@@ -72,7 +72,7 @@ def load_sweep(path) -> Sweep:
         raw = tomli.loads(text)
     except tomli.TOMLDecodeError as e:
         raise SceneError([f"{source}:{getattr(e, 'lineno', 1)}: TOML syntax error: {getattr(e, 'msg', e)}"]) from None
-    problems = _Problems(str(source), key_lines(text))
+    problems = Problems(str(source), key_lines(text))
     sweep = raw.get("sweep")
     if not isinstance(sweep, dict):
         problems.add(("sweep",), "a sweep file needs a [sweep] table", show_got=False)
@@ -191,20 +191,20 @@ def _with_values(base_raw: dict, axes, values) -> dict:
 
 def _toml_text(doc: dict) -> str:
     """TOML for a scene document (tables, arrays of tables, and plain values)."""
-    from ..scene.schema import _toml_value
+    from ..scene.schema import toml_value
     out = []
     for name, value in doc.items():
         if not isinstance(value, (dict, list)) or (isinstance(value, list) and not all(isinstance(x, dict)
                                                                                         for x in value)):
-            out.insert(0, f"{name} = {_toml_value(value)}")
+            out.insert(0, f"{name} = {toml_value(value)}")
     for name, value in doc.items():
         if isinstance(value, dict):
             out.append(f"[{name}]")
-            out += [f"{k} = {_toml_value(v)}" for k, v in value.items()]
+            out += [f"{k} = {toml_value(v)}" for k, v in value.items()]
         elif isinstance(value, list) and value and all(isinstance(x, dict) for x in value):
             for item in value:
                 out.append(f"[[{name}]]")
-                out += [f"{k} = {_toml_value(v)}" for k, v in item.items()]
+                out += [f"{k} = {toml_value(v)}" for k, v in item.items()]
     return "\n".join(out) + "\n"
 
 

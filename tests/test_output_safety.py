@@ -1,5 +1,6 @@
-"""Nothing lost, round two: one regression test per defect of the second hostile test (issue
-"Nothing lost, round two"), numbered as there."""
+"""Outputs are safe to write and runs safe to stop: no write through planted links or over what a command reads,
+impossible output places and schedulers refused as bad input before any work, bounded sweep workers, and signals
+at any moment exiting 130 without a traceback."""
 
 import os
 import shutil
@@ -34,7 +35,7 @@ def good(tmp_path_factory):
     return d / "good.h5"
 
 
-def test_1_sweep_never_writes_through_links_planted_in_its_output(tmp_path):
+def test_sweep_never_writes_through_links_planted_in_its_output(tmp_path):
     (tmp_path / "one.toml").write_text(ONE)
     (tmp_path / "od.toml").write_text(SWEEP)
     out = tmp_path / "o" / "od"
@@ -53,7 +54,7 @@ def test_1_sweep_never_writes_through_links_planted_in_its_output(tmp_path):
     assert "friction = 0.2" in (out / "point-0000.toml").read_text()
 
 
-def test_2_an_output_that_exists_and_is_not_a_regular_file_is_refused(tmp_path, good):
+def test_an_output_that_exists_and_is_not_a_regular_file_is_refused(tmp_path, good):
     fifo = tmp_path / "fifo.png"  # .png: render keeps the name as it is
     os.mkfifo(fifo)
     places = [fifo]
@@ -71,7 +72,7 @@ def test_2_an_output_that_exists_and_is_not_a_regular_file_is_refused(tmp_path, 
         assert os.lstat(place).st_mode == kind  # still what it was
 
 
-def test_3_export_never_overwrites_a_sidecar_it_did_not_write(tmp_path, good):
+def test_export_never_overwrites_a_sidecar_it_did_not_write(tmp_path, good):
     other = tmp_path / "other.h5"
     shutil.copy(good, other)
     before = other.read_bytes()
@@ -87,7 +88,7 @@ def test_3_export_never_overwrites_a_sidecar_it_did_not_write(tmp_path, good):
         assert code == 0, err
 
 
-def test_4_sweep_workers_are_bounded(tmp_path):
+def test_sweep_workers_are_bounded(tmp_path):
     (tmp_path / "one.toml").write_text(ONE)
     (tmp_path / "od.toml").write_text(SWEEP)
     for n, message in (("1000", "must be from 0 to"), ("-1", "must be from 0 to")):
@@ -96,7 +97,7 @@ def test_4_sweep_workers_are_bounded(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
-def test_5_impossible_output_places_are_bad_input_before_any_work(tmp_path, good):
+def test_impossible_output_places_are_bad_input_before_any_work(tmp_path, good):
     (tmp_path / "one.toml").write_text(ONE)
     (tmp_path / "od.toml").write_text(SWEEP)
     long_name = tmp_path / ("x" * 300 + ".xyz")
@@ -122,13 +123,13 @@ def test_5_impossible_output_places_are_bad_input_before_any_work(tmp_path, good
     assert code == 0 and (tmp_path / "nodir" / "x.xyz").is_file(), err
 
 
-def test_6_a_bad_scheduler_is_bad_input():
+def test_a_bad_scheduler_is_bad_input():
     code, _, err = cli("sweep", "whatever.toml", "--scheduler", "nonsense")
     assert code == 2 and "--scheduler" in err and "'nonsense'" in err, err
 
 
 @pytest.mark.slow
-def test_6_a_scheduler_that_does_not_answer_is_bad_input_within_the_connect_timeout(tmp_path):
+def test_a_scheduler_that_does_not_answer_is_bad_input_within_the_connect_timeout(tmp_path):
     from blobcli.tools.executor import CONNECT_SECONDS
     (tmp_path / "one.toml").write_text(ONE)
     (tmp_path / "od.toml").write_text(SWEEP)
@@ -138,7 +139,7 @@ def test_6_a_scheduler_that_does_not_answer_is_bad_input_within_the_connect_time
     assert time.perf_counter() - t0 < CONNECT_SECONDS + 10
 
 
-def test_8_a_signal_while_python_imports_exits_130_without_a_traceback(tmp_path):
+def test_a_signal_while_python_imports_exits_130_without_a_traceback(tmp_path):
     """The installed `blobsim` command, signalled 0.1-0.2 s after its start: handlers go in before the
     heavy imports (blobcli.__main__.entry). Before about 0.03 s Python has not yet run any of blobsim's
     code: its own default handling is beyond reach; on a loaded machine that start takes longer, so each
@@ -186,13 +187,13 @@ sys.exit(cli.main(["run", "scene.toml"]))
 """
 
 
-def test_8_a_signal_that_c_code_turns_into_another_error_exits_130_without_a_traceback():
+def test_a_signal_that_c_code_turns_into_another_error_exits_130_without_a_traceback():
     proc = subprocess.run([sys.executable, "-c", _C_CODE_CUT_BY_A_SIGNAL], capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 130 and proc.stderr == "blobsim: interrupted\n", (proc.returncode, proc.stderr)
 
 
-def test_10_render_of_a_trajectory_with_no_finite_position_is_bad_input(tmp_path, good):
+def test_render_of_a_trajectory_with_no_finite_position_is_bad_input(tmp_path, good):
     bad = tmp_path / "nan.h5"
     shutil.copy(good, bad)
     with h5py.File(bad, "r+") as f:
@@ -223,7 +224,7 @@ def _size(path) -> int:
 @pytest.mark.slow
 @pytest.mark.alone  # 8 workers on 2 cores must stop within 5 s: beside another test's load it took 5.2-5.3 s in CI
 @pytest.mark.parametrize("signum, group", [(signal.SIGINT, True), (signal.SIGTERM, False)])
-def test_4_7_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(tmp_path, signum, group):
+def test_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(tmp_path, signum, group):
     """The most workers --workers accepts, signalled while the points run: Ctrl-C as a terminal sends
     it (to the whole process group), SIGTERM as `kill PID` does: exit 130 within 5 s, only blobsim's
     lines on stderr (no worker's traceback, no leaked-semaphore warning), the summary written, the
@@ -252,7 +253,7 @@ def test_4_7_a_sweep_on_many_workers_stops_within_5_s_quietly_with_its_summary(t
 
 
 @pytest.mark.slow
-def test_9_a_scene_at_the_step_bound_is_interrupted_within_2_s(tmp_path):
+def test_a_scene_at_the_step_bound_is_interrupted_within_2_s(tmp_path):
     """substeps × iterations × vertices at MAX_STEP_WORK (a 4,000-vertex blob at 100 × 50): `check`
     accepts it, and a Ctrl-C in mid-run is honoured within 2 s."""
     from blobcli.scene.schema import MAX_STEP_WORK
