@@ -245,13 +245,9 @@ void bc_collide_loaded_corners(const bcContext *ctx, double h) {
             if (!s->awake[b]) continue;
             int64_t o = m->offsets[b], e = m->offsets[b + 1];
             if (e - o < 3) continue;
-            double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-            for (int64_t i = o; i < e; i++) {
-                x0 = bc_min(x0, pos[i]);
-                y0 = bc_min(y0, pos[n + i]);
-                x1 = bc_max(x1, pos[i]);
-                y1 = bc_max(y1, pos[n + i]);
-            }
+            double ring[4]; /* its bounds x0, y0, x1, y1 */
+            bc_ring_bounds(pos, n, o, e, ring);
+            double x0 = ring[0], y0 = ring[1], x1 = ring[2], y1 = ring[3];
             if (x1 < aabb[0] || x0 > aabb[2] || y1 < aabb[1] || y0 > aabb[3]) continue;
             for (int64_t c = 0; c < corners; c++) {
                 double qx, qy;
@@ -367,7 +363,7 @@ static double distance_to(const bcContext *ctx, int64_t k, double x, double y) {
         double r = hypot(x - row[0], y - row[1]) - row[2];
         return row[3] != 0.0 ? bc_max(-r, 0.0) : bc_max(r, 0.0);
     }
-    if (kind == POLYGON && inside_rows(geom, offsets[shape], offsets[shape + 1], x, y)) return 0.0;
+    if (kind == POLYGON && bc_rows_contain(geom, offsets[shape], offsets[shape + 1], x, y)) return 0.0;
     double best = INFINITY;
     for (int64_t r = offsets[shape]; r < offsets[shape + 1]; r++) {
         const double *row = geom + 4 * r;

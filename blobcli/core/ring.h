@@ -91,6 +91,31 @@ static inline bool bc_crosses_ray(double ax, double ay, double bx, double by, do
     return (ay > y) != (by > y) && x < ax + (y - ay) * (bx - ax) / (by - ay);
 }
 
+/* Crossing-number test against the edge rows start .. stop of a collider polygon (rows of 4: ax, ay, bx, by) */
+static inline bool bc_rows_contain(const double *rows, int64_t start, int64_t stop, double x, double y) {
+    bool inside = false;
+    for (int64_t k = start; k < stop; k++) {
+        const double *e = rows + 4 * k;
+        if (bc_crosses_ray(e[0], e[1], e[2], e[3], x, y)) inside = !inside;
+    }
+    return inside;
+}
+
+/* The bounding box of ring o..e: box = (x0, y0, x1, y1) */
+static inline void bc_ring_bounds(const double *p, int64_t n, int64_t o, int64_t e, double box[4]) {
+    double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    for (int64_t i = o; i < e; i++) {
+        x0 = bc_min(x0, p[i]);
+        y0 = bc_min(y0, p[n + i]);
+        x1 = bc_max(x1, p[i]);
+        y1 = bc_max(y1, p[n + i]);
+    }
+    box[0] = x0;
+    box[1] = y0;
+    box[2] = x1;
+    box[3] = y1;
+}
+
 /* Crossing-number test: is (x, y) inside the closed polygon of ring o..e? */
 static inline bool bc_ring_contains(const double *p, int64_t n, int64_t o, int64_t e, double x, double y) {
     bool inside = false;

@@ -157,16 +157,6 @@ static inline void stuck_outside_circle(const Stage *g, int64_t i, double x, dou
     *qy = y;
 }
 
-/* Crossing-number test against the edges geom[start:stop] of one polygon */
-static inline bool inside_shape(const double *geom, int64_t start, int64_t stop, double x, double y) {
-    bool inside = false;
-    for (int64_t k = start; k < stop; k++) {
-        const double *e = geom + 4 * k;
-        if (bc_crosses_ray(e[0], e[1], e[2], e[3], x, y)) inside = !inside;
-    }
-    return inside;
-}
-
 /* Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed. */
 static void collide_plane(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
@@ -412,7 +402,7 @@ static void collide_polygon(const Stage *g, const Colliders *c, int parallel) {
                 if (g->moving) surface_velocity(c->delta, s, x, y, g->h, &wx, &wy);
                 record(g, i, nx, ny, -d, wx, wy, blob_material, shape_material);
                 /* Beside a reflex corner that line runs inside the solid: check again. */
-                inside = inside_shape(geom, start, stop, x, y);
+                inside = bc_rows_contain(geom, start, stop, x, y);
             }
             if (inside) {
                 /* Began inside (spawned there, pushed in by another stage), or still inside after the swept
@@ -457,7 +447,7 @@ static void collide_polygon(const Stage *g, const Colliders *c, int parallel) {
                 /* Static friction, unless holding the vertex would put it inside (reflex corners). */
                 double sx, sy;
                 stuck(g, i, x, y, x0, y0, &sx, &sy);
-                if (!inside_shape(geom, start, stop, sx, sy)) {
+                if (!bc_rows_contain(geom, start, stop, sx, sy)) {
                     x = sx;
                     y = sy;
                 }

@@ -38,13 +38,9 @@ int64_t bc_first_broken_blob(const bcContext *ctx) {
         if (!s->awake[b]) continue;
         int64_t o = m->offsets[b], e = m->offsets[b + 1];
         if (e - o < 3) continue;
-        double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-        for (int64_t i = o; i < e; i++) {
-            x0 = bc_min(x0, pos[i]);
-            y0 = bc_min(y0, pos[n + i]);
-            x1 = bc_max(x1, pos[i]);
-            y1 = bc_max(y1, pos[n + i]);
-        }
+        double ring[4]; /* its bounds x0, y0, x1, y1 */
+        bc_ring_bounds(pos, n, o, e, ring);
+        double x0 = ring[0], y0 = ring[1], x1 = ring[2], y1 = ring[3];
         double margin = bc_max(x1 - x0, y1 - y0);
         int64_t beside = -1;
         for (int64_t k = 0; k < walls->count && beside < 0; k++) {
@@ -202,7 +198,7 @@ static bool edge_inside(const bcContext *ctx, int64_t k, int64_t b) {
         int64_t j = bc_next_in_ring(i, o, e);
         for (int q = 1; q < 4; q++) {
             double x = pos[i] + 0.25 * q * (pos[j] - pos[i]), y = pos[n + i] + 0.25 * q * (pos[n + j] - pos[n + i]);
-            if (x < aabb[0] || x > aabb[2] || y < aabb[1] || y > aabb[3] || !inside_rows(geom, start, stop, x, y))
+            if (x < aabb[0] || x > aabb[2] || y < aabb[1] || y > aabb[3] || !bc_rows_contain(geom, start, stop, x, y))
                 continue;
             double nearest = INFINITY;
             for (int64_t r = start; r < stop; r++) {

@@ -13,16 +13,6 @@
 enum { PLANE, SEGMENT, CIRCLE, POLYGON }; /* the solver kinds, colliders.SOLVERS */
 static const int64_t POSE = BC_WALL_POSE_COLUMNS;
 
-/* Crossing-number test against the rows start .. stop of one polygon (statics.c's inside_shape) */
-static inline bool inside_rows(const double *geom, int64_t start, int64_t stop, double x, double y) {
-    bool inside = false;
-    for (int64_t r = start; r < stop; r++) {
-        const double *row = geom + 4 * r;
-        if (bc_crosses_ray(row[0], row[1], row[2], row[3], x, y)) inside = !inside;
-    }
-    return inside;
-}
-
 /* Collider k's corner c, where it is now: a polygon's row c's first point, a segment's end c (0: a, 1: b) */
 static inline void corner_of(const bcContext *ctx, int64_t kind, int64_t shape, int64_t c, double *qx, double *qy) {
     const double *geom = ctx->s->placed[kind].geom;

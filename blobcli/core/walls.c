@@ -170,14 +170,9 @@ static void wake_near(const bcContext *ctx, int64_t k) {
     const double *aabb = s->placed[kind].aabb + 4 * shape, *pos = s->position;
     for (int64_t b = 0; b < m->blob_count; b++) {
         if (s->awake[b]) continue;
-        double x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
-        for (int64_t i = m->offsets[b]; i < m->offsets[b + 1]; i++) {
-            x0 = bc_min(x0, pos[i]);
-            y0 = bc_min(y0, pos[n + i]);
-            x1 = bc_max(x1, pos[i]);
-            y1 = bc_max(y1, pos[n + i]);
-        }
-        if (x1 >= aabb[0] && x0 <= aabb[2] && y1 >= aabb[1] && y0 <= aabb[3]) {
+        double box[4];
+        bc_ring_bounds(pos, n, m->offsets[b], m->offsets[b + 1], box);
+        if (box[2] >= aabb[0] && box[0] <= aabb[2] && box[3] >= aabb[1] && box[1] <= aabb[3]) {
             s->awake[b] = 1;
             s->still[b] = 0.0;
         }
