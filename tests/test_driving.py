@@ -244,3 +244,14 @@ def test_driving_keys_out_of_bounds_are_refused_with_their_line(text, message):
 def test_a_force_a_step_can_follow_is_taken():
     parse_scene(BLOB + "force = [2800.0, 0.0]\n", "s.toml")  # just under 2823 m/s² at 16 substeps
     parse_scene(BLOB.replace("[scene]\n", "[scene]\nmax_substeps = 32\n") + "force = [5000.0, 0.0]\n", "s.toml")
+
+
+def test_the_drive_bound_uses_the_substep_rules_stride():
+    """scene/checks.py bounds a drive by what the substep rule can follow, with integrate.c's STRIDE: the scene layer
+    does not load the step, so the two copies are held equal here."""
+    import re
+    from pathlib import Path
+
+    from blobcli.scene.checks import STRIDE
+    source = (Path(__file__).resolve().parents[1] / "blobcli" / "core" / "integrate.c").read_text()
+    assert float(re.search(r"static const double STRIDE = ([0-9.]+);", source).group(1)) == STRIDE

@@ -55,7 +55,6 @@
 #include "contacts.h"
 #include "parallel.h"
 
-#define PUSH_ROW 10 /* a push's row in the scratch: Δ_x, Δ_y, w_p, w_e, t, renew stick, -C, f_x, f_y (one spare) */
 
 static inline int64_t floor_div(int64_t a, int64_t b) { return a / b - (a % b != 0 && (a < 0) != (b < 0)); }
 static inline int64_t floor_mod(int64_t a, int64_t b) { return a - b * floor_div(a, b); }
@@ -377,7 +376,7 @@ static void resolve_between(const Contacts *cs, const bcScratch *w, bool far, in
             for (int64_t i_row = 0; i_row < here_rows; i_row++) {
                 int64_t r = listed[i_row];
                 int64_t p = o + r / CPV, c = r % CPV;
-                double *row = push + PUSH_ROW * r;
+                double *row = push + BC_PUSH_ROW * r;
                 if (contact_push(cs, p, c, row)) {
                     listed[pushes++] = r;
                     int64_t b, e0, e1;
@@ -392,13 +391,13 @@ static void resolve_between(const Contacts *cs, const bcScratch *w, bool far, in
                 int64_t r = listed[i_row], p, c, b, e0, e1;
                 pushed(cs, r, o, &p, &c, &b, &e0, &e1);
                 double most = bc_max(bc_max(bc_max(share[p], share[e0]), share[e1]), 1.0);
-                apply_push(cs, p, c, e0, e1, a, b, 1.0 / most, push + PUSH_ROW * r);
+                apply_push(cs, p, c, e0, e1, a, b, 1.0 / most, push + BC_PUSH_ROW * r);
             }
             for (int64_t i_row = 0; i_row < pushes; i_row++) {
                 int64_t r = listed[i_row], p, c, b, e0, e1;
                 pushed(cs, r, o, &p, &c, &b, &e0, &e1);
                 share[p] = share[e0] = share[e1] = 0.0;
-                if (push[PUSH_ROW * r + 5] != 0.0) { /* held from now on where it touches now (after a slide: there) */
+                if (push[BC_PUSH_ROW * r + 5] != 0.0) { /* held from now on where it touches now (after a slide: there) */
                     double sx, sy;
                     bc_image(cs->center, a, b, cs->box, &sx, &sy);
                     cs->stick_edge[c * n + p] = e0;
@@ -449,7 +448,7 @@ void bc_resolve_blob_contacts(const bcContext *ctx, int reverse, double h) {
         /* (phase 0 has one task: that order is sequential) */
         BC_PARALLEL_LOOP(ctx->c->parallel, (int64_t q = 0; q < tasks; q++), {
             int64_t s = parity + 2 * q;
-            resolve_between(&cs, w, phase == 0, s, s + shift, reverse != 0, w->resolve_push + q * slots * PUSH_ROW,
+            resolve_between(&cs, w, phase == 0, s, s + shift, reverse != 0, w->resolve_push + q * slots * BC_PUSH_ROW,
                             w->resolve_listed + q * slots);
         });
     }

@@ -66,7 +66,7 @@ bcScratch *bc_scratch_new(const bcModel *m) {
         }
         int64_t N = m->vertex_count, rows = BC_CONTACTS_PER_VERTEX * m->vertex_count;
         w->resolve_slots = BC_CONTACTS_PER_VERTEX * most;
-        w->resolve_push = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots * 10 + 1), sizeof(double));
+        w->resolve_push = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots * BC_PUSH_ROW + 1), sizeof(double));
         w->friction_sum = calloc((size_t)(2 * rows + 1), sizeof(double));
         w->resolve_listed = calloc((size_t)(BC_MAX_STRIPS * w->resolve_slots + 1), sizeof(int64_t));
         w->resolve_share = calloc((size_t)(N + 1), sizeof(double));

@@ -4,6 +4,8 @@
 #ifndef BC_SCRATCH_H
 #define BC_SCRATCH_H
 
+#define BC_PUSH_ROW 10 /* a blob contact push (contact_solver.c): Δ_x, Δ_y, w_p, w_e, t, renew, -C, f_x, f_y, spare */
+
 #include "blobcore.h"
 
 struct bcScratch {
@@ -50,7 +52,7 @@ struct bcScratch {
     /* contact_solver.c: the blob contacts' pushes and rows (collide._resolve's scratch), one row of the first two
      * for each parallel task of a phase, and the velocity stage's contacts (collide.blob_contact_velocities) */
     int64_t resolve_slots;     /* CONTACTS_PER_VERTEX × the most vertices a ring has */
-    double *resolve_push;      /* (MAX_STRIPS, slots, 10): each task's blob's pushes, by slot */
+    double *resolve_push;      /* (MAX_STRIPS, slots, BC_PUSH_ROW): each task's blob's pushes, by slot */
     double *friction_sum;      /* (2, CONTACTS_PER_VERTEX N): each contact's tangential correction this substep */
     int64_t *resolve_listed;   /* (MAX_STRIPS, slots): each task's blob's slots here, then those that push */
     double *resolve_share;     /* (N): how many pushes each vertex is in; all zero between blobs */
