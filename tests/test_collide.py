@@ -247,7 +247,8 @@ def broad_phase(center, radius, parallel=False):
     a square ring of 4 vertices at that radius, whose mean and farthest vertex the broad phase takes as its centre
     and radius (state.center, state.radius: what the pairs are found from, returned). The scratch's pair buffers
     (pairs, partner, partner_pair) are swapped for ones that hold every pair, B (B - 1) / 2, so that no pair count
-    is past the capacity (the step's own holds PAIRS_PER_BLOB B), and put back after. `parallel`: the stage's
+    is past the capacity (the step's own holds PAIRS_PER_BLOB B), with the pairs' impulse record (pair_impulse),
+    and put back after. `parallel`: the stage's
     parallel build (bcSettings.parallel, on the library's threads). Returns the pairs (P, 2) and the strips
     (strip_count, strip_of, strip_start, strip_blobs, crossing, far), copied out of the scratch."""
     blobs = len(radius)
@@ -260,10 +261,11 @@ def broad_phase(center, radius, parallel=False):
                   parallel=parallel)
     w, capacity = stage.scratch, max(1, blobs * (blobs - 1) // 2)
     buffers = {name: np.zeros(2 * capacity, np.int64) for name in ("pairs", "partner", "partner_pair")}
+    buffers.update({name: np.zeros(2 * capacity) for name in ("pair_impulse",)})
     kept = {name: getattr(w, name) for name in buffers}, w.pair_capacity
     try:
         for name, buffer in buffers.items():
-            setattr(w, name, stage.ffi.cast("int64_t *", buffer.ctypes.data))
+            setattr(w, name, stage.ffi.cast("int64_t *" if buffer.dtype == np.int64 else "double *", buffer.ctypes.data))
         w.pair_capacity = capacity
         count = stage.call("find_blob_pairs")
         assert count == w.pair_count  # every pair listed

@@ -105,9 +105,10 @@ class Views:
         for k, (geom, aabb, delta) in enumerate(s.placed):
             v.placed[k].geom, v.placed[k].aabb, v.placed[k].delta = p(geom), p(aabb), p(delta)
         v.static_of, v.static_push, v.wall_of, v.wall_push = map(p, s.touch)
-        virial, touching, touching_count = s.packing
+        virial, touching, touching_force, touching_count = s.packing
         if len(virial):  # an open world keeps no packing records
-            v.virial, v.touching, v.touching_count = p(virial), p(touching), p(touching_count)
+            v.virial, v.touching, v.touching_force, v.touching_count = (p(virial), p(touching), p(touching_force),
+                                                                        p(touching_count))
         (v.self_pairs, v.self_values, v.self_count, v.self_near, v.self_chunks, v.zoned) = map(p, s.self_contact)
 
     def fill_settings(self, c, parallel: bool) -> None:

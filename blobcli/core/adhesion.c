@@ -55,6 +55,7 @@
 #include "collide_limits.h"
 #include "friction.h"
 #include "parallel.h"
+#include "packing_records.h"
 #include "periodic.h"
 #include "ring.h"
 #include "scratch.h"
@@ -261,14 +262,6 @@ static void stick_to_colliders(const bcContext *ctx, double h) {
     });
 }
 
-/* virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre (as the contacts' solver) */
-static inline void add_virial(double *virial, int64_t b, double rx, double ry, double jx, double jy) {
-    virial[4 * b] += rx * jx;
-    virial[4 * b + 1] += rx * jy;
-    virial[4 * b + 2] += ry * jx;
-    virial[4 * b + 3] += ry * jy;
-}
-
 /* Where p_0 (image-shifted) is nearest to edge f0→f1 at the positions x: t in [0, 1] and the squared distance */
 static inline double nearest_on_edge(const double *x, int64_t n, int64_t f0, int64_t f1, double px, double py,
                                      double *t) {
@@ -339,8 +332,9 @@ static void stick_to_blobs(const bcContext *ctx, double h) {
             pos[n + f1] += t * w1 * dy;
             if (box.lx > 0.0) { /* impulses λ / h: -n on A at p, +n on B at q (the stress, packing.py) */
                 const double *center = s->center;
-                add_virial(s->virial, A, pos[p] - center[2 * A], pos[n + p] - center[2 * A + 1], -dx / h, -dy / h);
-                add_virial(s->virial, B, qx - center[2 * B], qy - center[2 * B + 1], dx / h, dy / h);
+                bc_add_virial(s->virial, A, pos[p] - center[2 * A], pos[n + p] - center[2 * A + 1], -dx / h, -dy / h);
+                bc_add_virial(s->virial, B, qx - center[2 * B], qy - center[2 * B + 1], dx / h, dy / h);
+                bc_add_pair_impulse(ctx->w, A, B, -dx / h, -dy / h);
             }
         }
     }

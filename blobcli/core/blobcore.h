@@ -117,6 +117,7 @@ typedef struct bcState {
     double *wall_push;           /* touch: (2, N) m */
     double *virial;              /* packing: (B, 4), or NULL in an open world */
     int64_t *touching;           /* packing: (P, 2), or NULL */
+    double *touching_force;      /* packing: (P, 2) N, each touching pair's contact force on its first blob, or NULL */
     int64_t *touching_count;     /* packing: (1,), or NULL */
     int64_t *self_pairs;         /* self_contact: (2, V N) */
     double *self_values;         /* self_contact: (4, V N) */

@@ -427,6 +427,9 @@ int64_t bc_find_blob_pairs(const bcContext *ctx) {
     for (int64_t i = 0; i < N; i++) s->blob_contact_depth[i] = 0.0; /* no contact has pushed yet this substep */
     for (int64_t i = 0; i < BC_CONTACTS_PER_VERTEX * N; i++) s->c_hit[i] = 0;
     for (int64_t i = 0; i < 2 * BC_CONTACTS_PER_VERTEX * N; i++) ctx->w->friction_sum[i] = 0.0; /* nor corrected */
+    for (int64_t k = 0; k < 2 * bc_imin(ctx->w->pair_count, ctx->w->pair_capacity); k++) {
+        ctx->w->pair_impulse[k] = 0.0; /* nor given an impulse */
+    }
     partners(ctx->w, B);
     strips(ctx);
     return count;
@@ -503,14 +506,15 @@ void bc_release_sticks(const bcContext *ctx) {
     }
 }
 
-/* The pairs whose contacts pushed in the step's last substep, asleep or not, into s->touching, in pair order, and
- * how many (sim/packing.py counts each blob's contacts from them). Each blob reads its own vertices' contacts once
- * and marks its own partner slots, in parallel. */
-void bc_keep_touching(const bcContext *ctx) {
+/* The pairs whose contacts pushed in the step's last substep (of length h), asleep or not, into s->touching, in pair
+ * order, with their contact force over that substep, J / h on the pair's first blob, into s->touching_force, and how
+ * many (sim/packing.py counts each blob's contacts and weighs their forces from them). Each blob reads its own
+ * vertices' contacts once and marks its own partner slots, in parallel. */
+void bc_keep_touching(const bcContext *ctx, double h) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     bcScratch *w = ctx->w;
-    if (s->touching == NULL || s->touching_count == NULL) return; /* an open world keeps no packing records */
+    if (s->touching == NULL || s->touching_force == NULL || s->touching_count == NULL) return; /* an open world keeps no packing records */
     const int64_t N = m->vertex_count, P = w->pair_count;
     uint8_t *pushed = w->pushed, *touching = w->touching;
     for (int64_t j = 0; j < 2 * P; j++) pushed[j] = 0;
@@ -536,6 +540,8 @@ void bc_keep_touching(const bcContext *ctx) {
         if (touching[k]) {
             s->touching[2 * n] = w->pairs[2 * k];
             s->touching[2 * n + 1] = w->pairs[2 * k + 1];
+            s->touching_force[2 * n] = w->pair_impulse[2 * k] / h;
+            s->touching_force[2 * n + 1] = w->pair_impulse[2 * k + 1] / h;
             n++;
         }
     }

@@ -26,8 +26,9 @@ void bc_keep_impacts(const bcContext *ctx);
 /* At the end of a substep: a contact that did not push in it lets go of its stick point (s->stick_edge) */
 void bc_release_sticks(const bcContext *ctx);
 
-/* In a periodic box: the pairs whose contacts pushed in the step's last substep, asleep or not, into
- * s->touching, in pair order, and how many into s->touching_count */
-void bc_keep_touching(const bcContext *ctx);
+/* In a periodic box: the pairs whose contacts pushed in the step's last substep (of length h), asleep or not,
+ * into s->touching, in pair order, their contact forces into s->touching_force, and how many into
+ * s->touching_count */
+void bc_keep_touching(const bcContext *ctx, double h);
 
 #endif

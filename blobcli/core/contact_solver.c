@@ -325,8 +325,9 @@ static inline void pushed(const Contacts *cs, int64_t r, int64_t o, int64_t *p, 
 }
 
 /* A push (its row, see contact_push) of contact slot c, scaled: p moves by w_p Δ, the edge's ends by
- * -(1 - t) w_e Δ and -t w_e Δ; the contact's push-out D and tangential correction K grow by the scaled -C and f. In a periodic box its impulses go into the virial: m Δx / h on p's blob at p, and on the other
- * at the edge point. */
+ * -(1 - t) w_e Δ and -t w_e Δ; the contact's push-out D and tangential correction K grow by the scaled -C and f. In a
+ * periodic box its impulses go into the virial, m Δx / h on p's blob at p and on the other at the edge point, and
+ * into the pair's record (packing_records.h). */
 static void apply_push(const Contacts *cs, int64_t p, int64_t c, int64_t e0, int64_t e1, int64_t a, int64_t b,
                        double scale, const double *push) {
     const int64_t n = cs->n;
@@ -335,10 +336,11 @@ static void apply_push(const Contacts *cs, int64_t p, int64_t c, int64_t e0, int
     if (cs->box.lx > 0.0) {
         const double *center = cs->center;
         double qx = (1.0 - t) * pos[e0] + t * pos[e1], qy = (1.0 - t) * pos[n + e0] + t * pos[n + e1];
-        add_virial(cs->virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1],
+        bc_add_virial(cs->virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1],
                    wp * dx / (cs->inv_mass[p] * cs->h), wp * dy / (cs->inv_mass[p] * cs->h));
-        add_virial(cs->virial, b, qx - center[2 * b], qy - center[2 * b + 1], -we * dx / (cs->inv_mass[e0] * cs->h),
+        bc_add_virial(cs->virial, b, qx - center[2 * b], qy - center[2 * b + 1], -we * dx / (cs->inv_mass[e0] * cs->h),
                    -we * dy / (cs->inv_mass[e0] * cs->h));
+        bc_add_pair_impulse(cs->w, a, b, wp * dx / (cs->inv_mass[p] * cs->h), wp * dy / (cs->inv_mass[p] * cs->h));
     }
     apply(pos, n, p, e0, e1, wp, (1.0 - t) * we, t * we, dx, dy);
     cs->depth[p] += scale * push[6];

@@ -154,12 +154,13 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
             vel[n + e0] -= (1.0 - t) * we * jy;
             vel[e1] -= t * we * jx;
             vel[n + e1] -= t * we * jy;
-            if (cs.box.lx > 0.0) { /* the virial: J on p's blob at p, -m_e w_e J on the other's at q */
+            if (cs.box.lx > 0.0) { /* the virial: J on p's blob at p, -m_e w_e J on the other's at q; the pair's J */
                 int64_t a = cs.blob_of[p], b = cs.blob_of[e0];
-                add_virial(cs.virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1], jx, jy);
+                bc_add_virial(cs.virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1], jx, jy);
                 double qx = (1.0 - t) * pos[e0] + t * pos[e1], qy = (1.0 - t) * pos[n + e0] + t * pos[n + e1];
-                add_virial(cs.virial, b, qx - center[2 * b], qy - center[2 * b + 1], -we * jx / inv_mass[e0],
+                bc_add_virial(cs.virial, b, qx - center[2 * b], qy - center[2 * b + 1], -we * jx / inv_mass[e0],
                            -we * jy / inv_mass[e0]);
+                bc_add_pair_impulse(cs.w, a, b, jx, jy);
             }
         }
     }

@@ -10,6 +10,7 @@
 #include "blobcore.h"
 #include "collide_limits.h"
 #include "friction.h"
+#include "packing_records.h"
 #include "periodic.h"
 #include "ring.h"
 #include "scratch.h"
@@ -35,6 +36,7 @@ typedef struct Contacts {
     double *stick_t;
     bcBox box;
     double *virial;       /* (B, 4), NULL in an open world (read only where box.lx > 0) */
+    const bcScratch *w;   /* the pairs and their impulses (packing_records.h), in a periodic box */
     double *friction_sum; /* (2, CONTACTS_PER_VERTEX, N): K, each contact's tangential correction this substep */
     double h;
 } Contacts;
@@ -48,7 +50,7 @@ static inline Contacts contacts_of(const bcContext *ctx, double h) {
                       .material = m->material, .c_edge = s->c_edge, .c_hit = s->c_hit, .c_normal = s->c_normal,
                       .depth = s->blob_contact_depth, .center = s->center, .radius = s->radius, .up_x = c->up_x,
                       .up_y = c->up_y, .stick_edge = s->stick_edge, .stick_t = s->stick_t,
-                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial,
+                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial, .w = ctx->w,
                       .friction_sum = ctx->w->friction_sum, .h = h};
 }
 
@@ -59,14 +61,6 @@ static inline double along(const double *pos, int64_t n, int64_t e0, int64_t e1,
     double ex = pos[e1] - pos[e0], ey = pos[n + e1] - pos[n + e0];
     double len2 = ex * ex + ey * ey;
     return len2 > 0.0 ? ((px - pos[e0]) * ex + (py - pos[n + e0]) * ey) / len2 : 0.0;
-}
-
-/* virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre */
-static inline void add_virial(double *virial, int64_t b, double rx, double ry, double jx, double jy) {
-    virial[4 * b] += rx * jx;
-    virial[4 * b + 1] += rx * jy;
-    virial[4 * b + 2] += ry * jx;
-    virial[4 * b + 3] += ry * jy;
 }
 
 /* (μ_s D, μ_k D) of a contact between blobs a and b */

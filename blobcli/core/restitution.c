@@ -13,6 +13,7 @@
 #include "driving.h"
 #include "friction.h"
 #include "parallel.h"
+#include "packing_records.h"
 #include "periodic.h"
 #include "restitution.h"
 #include "ring.h"
@@ -215,14 +216,6 @@ static double pair_drive_work(const bcContext *ctx, int64_t a, int64_t b, double
     return (da[0] + db[0] - (da[3] + db[3]) * cx - (da[4] + db[4]) * cy) / mu;
 }
 
-/* virial[b] += r ⊗ J (xx, xy, yx, yy): an impulse J on blob b at r from its centre. */
-static inline void add_virial(double *virial, int64_t b, double rx, double ry, double jx, double jy) {
-    virial[4 * b] += rx * jx;
-    virial[4 * b + 1] += rx * jy;
-    virial[4 * b + 2] += ry * jx;
-    virial[4 * b + 3] += ry * jy;
-}
-
 /* Bounce between blobs: the rule of bounce for each touching pair of the broad phase's (scratch.h: pairs,
  * pair_impact), along n̄, the unit vector between their centres, on their relative normal speed u = (v_b - v_a) · n̄,
  * with e = max(e_a, e_b) (as statics combine). Energies are in the pair's centre-of-mass frame, per unit of its
@@ -292,13 +285,16 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
                            bc_mix_restitution(material[3 * a + 2], material[3 * b + 2]), rest_speed);
         if (du == 0.0) continue;
         const int64_t blob[2] = {a, b};
-        /* the virial (packing): ∓μ Δu n̄ on a and b, at the midpoint between them (an open world keeps none) */
+        /* the virial (packing): ∓μ Δu n̄ on a and b, at the midpoint between them, and -μ Δu n̄ into the pair's
+         * record (an open world keeps none) */
         if (box.lx > 0.0 && s->virial != NULL) {
             const double side[2] = {0.5, -0.5};
             for (int r = 0; r < 2; r++) {
-                add_virial(s->virial, blob[r], side[r] * length * nx, side[r] * length * ny,
-                           -side[r] * 2.0 * mu * du * nx, -side[r] * 2.0 * mu * du * ny);
+                bc_add_virial(s->virial, blob[r], side[r] * length * nx, side[r] * length * ny,
+                              -side[r] * 2.0 * mu * du * nx, -side[r] * 2.0 * mu * du * ny);
             }
+            w->pair_impulse[2 * k] -= mu * du * nx;
+            w->pair_impulse[2 * k + 1] -= mu * du * ny;
         }
         const double share[2] = {-mb / (ma + mb), ma / (ma + mb)};
         for (int r = 0; r < 2; r++) {

@@ -40,8 +40,9 @@ bcScratch *bc_scratch_new(const bcModel *m) {
     w->kept_key = calloc((size_t)(P + 1), sizeof(int64_t));
     w->pushed = calloc((size_t)(2 * P + 1), sizeof(uint8_t));
     w->touching = calloc((size_t)(P + 1), sizeof(uint8_t));
+    w->pair_impulse = calloc((size_t)(2 * P + 1), sizeof(double));
     if (!(w->cell_of && w->cell_order && w->cell_start && w->cell_key && w->cell_sorting && w->fill && w->first &&
-          w->found && w->kept_order && w->kept_key && w->pushed && w->touching)) {
+          w->found && w->kept_order && w->kept_key && w->pushed && w->touching && w->pair_impulse)) {
         bc_scratch_free(w);
         return NULL;
     }
@@ -160,6 +161,7 @@ void bc_scratch_free(bcScratch *w) {
     free(w->kept_key);
     free(w->pushed);
     free(w->touching);
+    free(w->pair_impulse);
     /* narrow_phase.c */
     free(w->outgrown);
     free(w->stale);

@@ -40,6 +40,8 @@ struct bcScratch {
     int64_t *kept_key;      /* (capacity) ... and their keys */
     uint8_t *pushed;        /* (2 capacity): keep_touching: whether a contact of each partner slot pushed ... */
     uint8_t *touching;      /* (capacity) ... and of each pair */
+    double *pair_impulse;   /* (capacity, 2) N s: each pair's contact impulse this substep on its first blob, in a
+                             * periodic box (packing_records.h) */
     /* narrow_phase.c: bc_keep_blob_contacts' flags per blob and pair, and _detect's per vertex (rows of N, vertex i's
      * slot c at c N + i: a blob's vertices are its own, so parallel blobs never share a slot) */
     uint8_t *outgrown;        /* (B): went farther than its budget from where its contacts were found, or was split */

@@ -235,7 +235,7 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
                 t = lap(clock, LAP_BLOB_RESTITUTION, t);
             }
         }
-        if (periodic) bc_keep_touching(ctx); /* the pairs in contact at the step's end, for the contact numbers */
+        if (periodic) bc_keep_touching(ctx, h); /* the pairs in contact at the step's end, for the contact numbers */
         if (c->sleep) { /* islands of blobs at rest fall asleep, islands with a mover wake */
             awake_blobs = bc_update_sleep(ctx);
             t = lap(clock, LAP_SLEEP, t);

@@ -89,7 +89,7 @@ def mean_compliance(model: Model) -> float:
 def measure_packing(state: State, model: Model, params: Params, pressure: float, steps: int) -> Packing:
     """The packing's φ, contacts and rattlers now; `pressure` (N/m) measured by the caller."""
     area, kinetic = blob_measures(state, model)
-    touching = state.packing[1][:state.packing[2][0]]
+    touching = state.packing[1][:state.packing[3][0]]
     below = packing.rattler_below(model.material)
     rattler = packing.rattlers(touching, model.blob_count, below)
     z_all, z = packing.mean_contacts(touching, rattler)

@@ -244,7 +244,8 @@ class State(NamedTuple):
     packing: tuple  # in a periodic box, what the last step's blob contacts did (sim/packing.py): (virial (B, 4) N m s:
     #                 each blob's Σ (x - c) ⊗ J over its contact impulses J at points x, as xx, xy, yx, yy;
     #                 touching (PAIRS_PER_BLOB B, 2) int64: the pairs in contact at the step's end ...;
-    #                 touching_count (1,) int64: ... how many); empty arrays in an open world
+    #                 touching_force (PAIRS_PER_BLOB B, 2) N: ... each one's contact force over the step's last
+    #                 substep on its first blob ...; touching_count (1,) int64: ... how many); empty in an open world
     self_contact: tuple  # each ring's pairs of a vertex and an edge of its own this substep, and what finds them
     #                      (self_contact_records): scratch, but for `zoned`, a per-blob count
     #                      of the substeps the fail-safe acted in since the run (or its resume) began
@@ -275,7 +276,8 @@ def self_contact_records(vertices: int, blobs: int) -> tuple:
 
 def packing_records(blobs: int) -> tuple:
     """State.packing for a scene of this many blobs in a periodic box (0: an open world, which keeps none)."""
-    return np.zeros((blobs, 4)), np.zeros((PAIRS_PER_BLOB * blobs, 2), np.int64), np.zeros(1, np.int64)
+    return (np.zeros((blobs, 4)), np.zeros((PAIRS_PER_BLOB * blobs, 2), np.int64), np.zeros((PAIRS_PER_BLOB * blobs, 2)),
+            np.zeros(1, np.int64))
 
 
 def build_params(scene: Scene) -> Params:

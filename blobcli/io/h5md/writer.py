@@ -225,7 +225,7 @@ class TrajectoryWriter:
 
     def _measure_packing(self, k, step, state, area, sides):
         """Frame k's packing_fraction, contacts, rattlers, pressure and stress (sim/packing.py)."""
-        virial, touching, count = state.packing
+        virial, touching, _, count = state.packing
         touching = touching[:count[0]]
         blobs = len(area)
         sigma = packing.stress(virial, self.dt, sides) if step > 0 else np.zeros((2, 2))
