@@ -66,8 +66,12 @@ GALILEAN = 1e-3  # m: a blob on a conveyor, seen from the belt, vs the same blob
 WALL_HOLD = 1e-3  # m: how far a sticky blob whose adhesion holds moves on a wall over 5 s (measured 0.31 mm at
 #                   300 N/m, the centre still settling; 7.5 m at 100 N/m, which does not hold)
 FLAT_TOP_HOLD = (0.3, 0.5)  # the load a flat-topped blob hanging by its face lets go at, over adhesion × the face's
-#                             length: it peels from the corners (measured 0.397-0.405 at 10-40 N/m; docs/physics.md)
+#                             length: it peels from the corners (measured 0.393-0.402 at 10-40 N/m; docs/physics.md)
 RECORDED_PULL = 0.01  # relative: a sticky ceiling's recorded force against the weight hanging from it (measured 2e-4)
+FACE_HOLD = 1e-3  # m: how far a blob held on a collider's face (static friction, or adhesion) moves over 5 s after 4 s
+#                   of settling, whichever way the face is turned or mirrored (measured 0.03 mm held by static
+#                   friction, 0.31 mm by adhesion; 85 mm and 454 mm on a face solid toward +x or +y while the
+#                   polygon's hold read a point on such a face as inside it)
 NOT_PULLED = 1e-9  # m: how far a blob at rest within range of a sticky surface, not touching it, moves in 1 s without
 #                    gravity (measured 2.5e-13: round-off, as a clean one's 1.5e-13; a pull would close the 5 mm gap)
 
@@ -115,6 +119,47 @@ kind = "plane"
 point = [0.0, 0.0]
 normal = [0.0, 1.0]
 """
+
+
+def turned(points, turn: float, mirrored: bool = False) -> list:
+    """Points (x, y) mirrored (x -> -x) if `mirrored`, then turned `turn` degrees counter-clockwise about the origin;
+    a quarter turn exactly (no cos 90° = 6e-17), so a face on an axis stays on it."""
+    quarter = {0: (1.0, 0.0), 90: (0.0, 1.0), 180: (-1.0, 0.0), 270: (0.0, -1.0)}
+    c, s = quarter.get(turn % 360, (np.cos(np.radians(turn)), np.sin(np.radians(turn))))
+    p = np.asarray(points, dtype=np.float64) * ([-1.0, 1.0] if mirrored else [1.0, 1.0])
+    return [[float(x), float(y)] for x, y in p @ np.array([[c, s], [-s, c]])]
+
+
+FACE_POLYGON = [[-2.0, 0.0], [-3.0, -2.0], [0.0, -4.0], [3.0, -2.0], [2.0, 0.0]]  # its top face y = 0, |x| <= 2
+
+
+def on_face(blob: str, points, gravity, collider: str, turn: float, mirrored: bool = False, static: str = "") -> str:
+    """A scene of one blob (its outline `points` and keys `blob`) on the top face (y = 0, |x| <= 2) of a collider
+    ("box": 4 m by 2 m; "polygon": FACE_POLYGON; its keys `static`) under `gravity`, sleeping off, the whole of it
+    mirrored and turned (turned): at 0° the face is a floor, at 90° a wall solid toward +x, at 180° a ceiling, at 270°
+    a wall solid toward -x."""
+    if collider == "box":
+        (cx, cy), = turned([[0.0, -1.0]], turn, mirrored)
+        quarter = turn % 90 == 0  # a box symmetric about its axes: a mirror image of it is itself
+        size, angle = ([4.0, 2.0] if turn % 180 == 0 else [2.0, 4.0], 0.0) if quarter else ([4.0, 2.0], float(turn))
+        shape = f'kind = "box"\ncenter = [{cx!r}, {cy!r}]\nsize = {size}\nangle = {angle!r}\n'
+    else:
+        shape = f'kind = "polygon"\npoints = {turned(FACE_POLYGON, turn, mirrored)}\n'
+    (gx, gy), = turned([gravity], turn, mirrored)
+    return (f"[scene]\nsleep = false\ngravity = [{gx!r}, {gy!r}]\n[[blob]]\npoints = {turned(points, turn, mirrored)}\n"
+            f"{blob}[[static]]\n{shape}{static}")
+
+
+def face_drift(text: str, settle: float = 4.0, seconds: float = 5.0) -> float:
+    """m: how far the blob of an on_face scene moves (its centre) over `seconds` after `settle`."""
+    from blobcli.sim.pipeline import advance
+    sc = scene(text)
+    model, state = build(sc)
+    params = build_params(sc)
+    advance(state, model, params, round(settle / params.dt))
+    before = state.pos.mean(axis=0)
+    advance(state, model, params, round(seconds / params.dt))
+    return float(np.hypot(*(state.pos.mean(axis=0) - before)))
 
 
 @pytest.fixture

@@ -8,7 +8,17 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import FLAT_TOP_HOLD, MOMENTUM_ROUNDOFF, NOT_PULLED, RECORDED_PULL, WALL_HOLD, scene
+from conftest import (
+    FACE_HOLD,
+    FLAT_TOP_HOLD,
+    MOMENTUM_ROUNDOFF,
+    NOT_PULLED,
+    RECORDED_PULL,
+    WALL_HOLD,
+    face_drift,
+    on_face,
+    scene,
+)
 
 from blobcli import build, build_params, simulate
 from blobcli.core import load
@@ -128,6 +138,20 @@ def test_a_sticky_blob_stays_on_a_wall_when_its_adhesion_holds_and_slides_when_i
     18 N/m that friction μ_s a L against its weight would need)."""
     assert wall_drift(300.0, settle=3.0) < WALL_HOLD
     assert wall_drift(100.0, settle=3.0) > 1.0
+
+
+@pytest.mark.parametrize("collider, turn", [(c, t) for c in ("box", "polygon") for t in (0, 90, 180, 270)]
+                         + [("box", 30), ("box", 210), ("polygon", 120), ("polygon", 300)])
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_a_sticky_blob_holds_alike_on_any_face_turned_or_mirrored(collider, turn, mirrored):
+    """The wall case above (1 kg, 300 N/m, its weight along the face) on the top face of a box or polygon, the whole
+    scene turned and mirrored: every image of it stays (a rotation or a mirror of a scene moves its blobs the same
+    way). Static friction against the adhesion's press is what holds it, at a point on the face, exactly on an
+    axis-aligned one, where the crossing test's half-open rule reads a face solid toward +x or +y (turn 90, 180) as
+    inside the collider."""
+    points = [[-x, CEILING - y] for x, y in flat_top()]  # flat face down on y = 0
+    text = on_face("adhesion = 300.0\n", points, [-G, 0.0], collider, turn, mirrored)
+    assert face_drift(text) < FACE_HOLD
 
 
 def test_a_blob_at_rest_near_a_sticky_surface_is_not_pulled_onto_it():

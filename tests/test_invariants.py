@@ -12,6 +12,7 @@ from conftest import (
     COULOMB_SLIDE,
     DROP_AXIS,
     DROP_ENERGY,
+    FACE_HOLD,
     FIRST_ORDER,
     FLOOR,
     FLOOR_ROUNDOFF,
@@ -29,7 +30,9 @@ from conftest import (
     STATIC_PENETRATION,
     Stage,
     com,
+    face_drift,
     momentum,
+    on_face,
     scene,
     self_intersects,
     simulate_steps,
@@ -278,6 +281,22 @@ def travel_on_slope(friction, static_friction):
 def test_static_friction_holds_below_the_coulomb_angle():
     """tan 10° = 0.18 < μ_s = √(0.6 · 0.6): once settled, the slab does not creep."""
     assert abs(travel_on_slope(0.5, 0.6)) < REST_CREEP
+
+
+SLOPE_GRAVITY = [9.81 * np.sin(np.radians(10)), -9.81 * np.cos(np.radians(10))]  # a floor tilted by 10°
+
+
+@pytest.mark.parametrize("collider, turn", [(c, t) for c in ("box", "polygon") for t in (0, 90, 180, 270)]
+                         + [("box", 30), ("box", 210), ("polygon", 120), ("polygon", 300)])
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_static_friction_holds_a_slab_alike_on_any_face_turned_or_mirrored(collider, turn, mirrored):
+    """The slab on a 10° slope (as above: μ_s = 0.6 > tan 10°), on the top face of a box or polygon, the whole scene
+    turned and mirrored: every image of it stays as the floor's does (a rotation or a mirror of a scene moves its
+    blobs the same way). The held point lies on the face, exactly on an axis-aligned one, where the crossing test's
+    half-open rule reads a face solid toward +x or +y (turn 90, 180) as inside the collider."""
+    text = on_face("friction = 0.5\nstatic_friction = 0.6\ncompliance = 0.0\n", slab_points(), SLOPE_GRAVITY,
+                   collider, turn, mirrored)
+    assert face_drift(text) < FACE_HOLD
 
 
 def test_kinetic_friction_lets_it_slide_above_the_coulomb_angle():

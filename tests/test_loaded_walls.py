@@ -132,8 +132,11 @@ def test_a_heavy_loaded_press_holds_a_blob_on_a_floor_with_its_area():
     """A 1 kg box pressed down by 1,000 N onto a blob (r 0.25 m, 1 kg) on a floor: every frame, no vertex is below
     the floor or above the press's underside and the blob's area is within PRESSED_BY_LOAD; at rest the blob pushes
     back with the load. The dent a load makes, h² F / m_c (m_c the mass it presses), sets the substeps (walls.c:
-    bc_loaded_substeps): at the scene's 4 the blob was 24% short of its area at rest, 37% at the impact."""
-    sc = scene(LOADED_PRESS.format(duration=2.0, extra="", load=1000.0))
+    bc_loaded_substeps): at the scene's 4 the blob was 24% short of its area at rest, 37% at the impact. Static
+    friction holds the blob's top to the press's underside as it holds its bottom to the floor, so it spreads under
+    the load by bulging its free sides, not by sliding along the press: the press settles in about 3 s (1.6 mm/s at
+    2 s, 0.45 at 3 s, 0.12 at 4 s)."""
+    sc = scene(LOADED_PRESS.format(duration=3.5, extra="", load=1000.0))
     model, state = build(sc)
     params = build_params(sc)
     worst, far, force, height = 0.0, 0.0, [], []
@@ -182,7 +185,11 @@ def test_more_substeps_carry_a_load_the_default_cannot():
         advance(state, model, params, 1)
         area, _ = blob_measures(state, model)
         assert abs(area[0] / model.target_area[0] - 1.0) < PRESSED_BY_LOAD
-        under = np.abs(state.pos[:, 0]) < 0.5  # (squeezed out past the press's sides, a blob may rise beside it)
+        # Squeezed out past the press's sides, a blob may rise beside it, and round its corners: its top held to the
+        # press by static friction, what the load squeezes out bulges up beside the press, and for a few steps the
+        # vertex at a corner, whose edge to the next vertex under the press cuts the corner, lies up to 1.4 mm above
+        # the underside and 1 mm within the side, where the loaded corners push that edge out (bc_collide_loaded_corners)
+        under = np.abs(state.pos[:, 0]) < 0.49
         assert state.pos[:, 1].min() > -STATIC_PENETRATION
         assert state.pos[under, 1].max() < 0.52 + state.static_pose[1, 1] + STATIC_PENETRATION
     assert state.substeps_taken[0] > 16
@@ -205,9 +212,9 @@ kind = "box"
 
 @pytest.mark.parametrize("motion, says", [
     ('center = [0.0, 0.7]\nsize = [1.0, 0.2]\npath = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, -0.6, 0.0]]',
-     "step 39: blob 0 (blob0) is at 89% of its area beside static[1]"),  # dragged down onto the floor
+     "step 39: blob 0 (blob0) is at 88% of its area beside static[1]"),  # dragged down onto the floor
     ('center = [0.75, 0.6]\nsize = [1.0, 1.0]\nangular_velocity = 1000.0',
-     "step 1: blob 0 (blob0) is at 624% of its area beside static[1]"),  # its corners at 707 m/s: the ring torn
+     "step 1: blob 0 (blob0) is inside out beside static[1]"),  # its corners at 707 m/s: the ring torn
 ])
 def test_a_kinematic_collider_that_crushes_or_tears_a_blob_stops_the_run(tmp_path, motion, says):
     """A kinematic collider moves as told, however hard the blobs push back: a box dragged down onto a resting

@@ -86,12 +86,20 @@ static inline double bc_twice_ring_area(const double *p, int64_t n, int64_t o, i
     return twice_area;
 }
 
+/* m: how far off a surface a point the stages put on it may lie, the round-off of its coordinates (x, y):
+ * 1e-12 (1 + |x| + |y|), some 10⁴ ulps and far below any motion a stage makes. A test of which side of a surface
+ * such a point is on reads it within this, so that it comes out alike on every face (bc_rows_contain alone does
+ * not). */
+static inline double bc_surface_roundoff(double x, double y) { return 1e-12 * (1.0 + fabs(x) + fabs(y)); }
+
 /* Whether edge a→b crosses the ray from (x, y) toward +x (one step of the crossing-number test) */
 static inline bool bc_crosses_ray(double ax, double ay, double bx, double by, double x, double y) {
     return (ay > y) != (by > y) && x < ax + (y - ay) * (bx - ax) / (by - ay);
 }
 
-/* Crossing-number test against the edge rows start .. stop of a collider polygon (rows of 4: ax, ay, bx, by) */
+/* Crossing-number test against the edge rows start .. stop of a collider polygon (rows of 4: ax, ay, bx, by).
+ * Half-open: a point exactly on a face counts as inside where the solid is toward +x or +y of the face, as outside
+ * where it is toward -x or -y. */
 static inline bool bc_rows_contain(const double *rows, int64_t start, int64_t stop, double x, double y) {
     bool inside = false;
     for (int64_t k = start; k < stop; k++) {

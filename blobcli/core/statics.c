@@ -157,6 +157,26 @@ static inline void stuck_outside_circle(const Stage *g, int64_t i, double x, dou
     *qy = y;
 }
 
+/* stuck, but only where that is outside polygon rows start .. stop (beside a reflex corner the held point can be
+ * inside). The held point is on a face to round-off, exactly on an axis-aligned one, where the crossing test is
+ * half-open (ring.h: bc_rows_contain): on a face whose solid side is toward +x or +y it would count as inside and the
+ * hold be refused, on one toward -x or -y not. So the test reads the held point moved out along the contact normal
+ * n by the round-off ε (bc_surface_roundoff): a point on any face is outside, and mirror images hold alike, while a
+ * point a reflex corner puts inside lies inside by up to the hold's slip, far more than ε. */
+static inline void stuck_outside_polygon(const Stage *g, int64_t i, double x, double y, double x0, double y0,
+                                         const double *rows, int64_t start, int64_t stop, double *qx, double *qy) {
+    double sx, sy;
+    stuck(g, i, x, y, x0, y0, &sx, &sy);
+    double eps = bc_surface_roundoff(sx, sy);
+    if (!bc_rows_contain(rows, start, stop, sx + eps * g->contact_normal[i], sy + eps * g->contact_normal[g->n + i])) {
+        *qx = sx;
+        *qy = sy;
+        return;
+    }
+    *qx = x;
+    *qy = y;
+}
+
 /* Half-space n · (x - p) >= 0: nothing can pass an infinite plane, so no sweep is needed. */
 static void collide_plane(const Stage *g, const Colliders *c, int parallel) {
     int64_t n = g->n;
@@ -445,12 +465,7 @@ static void collide_polygon(const Stage *g, const Colliders *c, int parallel) {
             }
             if (best >= 0 || inside) {
                 /* Static friction, unless holding the vertex would put it inside (reflex corners). */
-                double sx, sy;
-                stuck(g, i, x, y, x0, y0, &sx, &sy);
-                if (!bc_rows_contain(geom, start, stop, sx, sy)) {
-                    x = sx;
-                    y = sy;
-                }
+                stuck_outside_polygon(g, i, x, y, x0, y0, geom, start, stop, &x, &y);
                 pushed(g, i, c->index[s], x - bx0, y - by0, loaded_mark(g, c, s));
             }
         }

@@ -161,22 +161,40 @@ static void place(const bcContext *ctx, int64_t k, double dx0, double dy0, doubl
     }
 }
 
-/* Wake the sleeping blobs whose bounding box meets collider k's (its island wakes at the step's end: sleep) */
-static void wake_near(const bcContext *ctx, int64_t k) {
+/* Wake the sleeping blobs whose bounding box meets the box collider k swept over the substep (its island wakes at
+ * the step's end: sleep): the union of `was`, its box at the substep's start, and its box now. So it wakes a blob it
+ * reaches and a blob it leaves: asleep against it, a blob would stay as the collider left it (flattened under a
+ * press that lifts, in the air over a platform that drops). The boxes meet within the round-off a vertex put on a
+ * surface lies off it (bc_surface_roundoff): a blob resting on the collider meets it whichever side of the surface
+ * round-off left its vertices. */
+static void wake_near(const bcContext *ctx, int64_t k, const double was[4]) {
     const bcModel *m = ctx->m;
     bcState *s = ctx->s;
     int64_t kind = m->walls.kind[k], shape = m->walls.shape[k], n = m->vertex_count;
     if (kind < 0 || kind >= BC_SOLVER_KINDS || shape < 0 || shape >= m->statics[kind].shapes) return;
-    const double *aabb = s->placed[kind].aabb + 4 * shape, *pos = s->position;
+    const double *now = s->placed[kind].aabb + 4 * shape, *pos = s->position;
+    double x0 = bc_min(was[0], now[0]), y0 = bc_min(was[1], now[1]);
+    double x1 = bc_max(was[2], now[2]), y1 = bc_max(was[3], now[3]);
     for (int64_t b = 0; b < m->blob_count; b++) {
         if (s->awake[b]) continue;
         double box[4];
         bc_ring_bounds(pos, n, m->offsets[b], m->offsets[b + 1], box);
-        if (box[2] >= aabb[0] && box[0] <= aabb[2] && box[3] >= aabb[1] && box[1] <= aabb[3]) {
+        double eps = bc_surface_roundoff(bc_max(fabs(box[0]), fabs(box[2])), bc_max(fabs(box[1]), fabs(box[3])));
+        if (box[2] >= x0 - eps && box[0] <= x1 + eps && box[3] >= y0 - eps && box[1] <= y1 + eps) {
             s->awake[b] = 1;
             s->still[b] = 0.0;
         }
     }
+}
+
+/* Collider k's bounding box where it is placed now, into box (x0, y0, x1, y1); nothing for a collider the model
+ * lacks (place and wake_near skip it too) */
+static void box_of(const bcContext *ctx, int64_t k, double box[4]) {
+    int64_t kind = ctx->m->walls.kind[k], shape = ctx->m->walls.shape[k];
+    box[0] = box[1] = box[2] = box[3] = 0.0;
+    if (kind < 0 || kind >= BC_SOLVER_KINDS || shape < 0 || shape >= ctx->m->statics[kind].shapes) return;
+    const double *aabb = ctx->s->placed[kind].aabb + 4 * shape;
+    for (int j = 0; j < 4; j++) box[j] = aabb[j];
 }
 
 int bc_any_moves(const bcContext *ctx) {
@@ -208,8 +226,12 @@ void bc_place_walls(const bcContext *ctx, double t, double h) {
         pose[0] = next[0];
         pose[1] = next[1];
         pose[2] = next[2];
+        double was[4];
+        box_of(ctx, k, was);
         place(ctx, k, dx0, dy0, th0, next[0], next[1], next[2], motion == BC_LOADED);
-        wake_near(ctx, k);
+        /* A collider that holds still this substep (between matching keyframes, after its last) is a fixed one to
+         * the blobs asleep against it: they sleep on until it moves. */
+        if (next[0] != dx0 || next[1] != dy0 || next[2] != th0) wake_near(ctx, k, was);
     }
 }
 
