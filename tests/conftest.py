@@ -70,6 +70,8 @@ FLAT_TOP_HOLD = (0.3, 0.5)  # the load a flat-topped blob hanging by its face le
 RECORDED_PULL = 0.01  # relative: a sticky ceiling's recorded force against the weight hanging from it (measured 2e-4)
 NOT_PULLED = 1e-9  # m: how far a blob at rest within range of a sticky surface, not touching it, moves in 1 s without
 #                    gravity (measured 2.5e-13: round-off, as a clean one's 1.5e-13; a pull would close the 5 mm gap)
+PUSHED_GAP_ROUNDOFF = 1e-12  # m: a pushed-apart random start's gaps, measured again from centres put back in the
+#                              box, below MIN_GAP × (r_a + r_b) (the push stops at that gap) by at most this
 
 
 def pytest_configure(config):
