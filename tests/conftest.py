@@ -74,6 +74,8 @@ FACE_HOLD = 1e-3  # m: how far a blob held on a collider's face (static friction
 #                   polygon's hold read a point on such a face as inside it)
 NOT_PULLED = 1e-9  # m: how far a blob at rest within range of a sticky surface, not touching it, moves in 1 s without
 #                    gravity (measured 2.5e-13: round-off, as a clean one's 1.5e-13; a pull would close the 5 mm gap)
+PUSHED_GAP_ROUNDOFF = 1e-12  # m: a pushed-apart random start's gaps, measured again from centres put back in the
+#                              box, below MIN_GAP × (r_a + r_b) (the push stops at that gap) by at most this
 
 
 def pytest_configure(config):
