@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import cli
-from test_outputs import ONE  # one blob on a floor, 40 steps
+from test_files_and_resume import ONE  # one blob on a floor, 40 steps
 
 SWEEP = """[sweep]
 scene = "one.toml"
