@@ -164,6 +164,25 @@ def face_drift(text: str, settle: float = 4.0, seconds: float = 5.0) -> float:
     return float(np.hypot(*(state.pos.mean(axis=0) - before)))
 
 
+ONE = """[scene]
+steps = 40
+[[blob]]
+name = "solo"
+center = [0.0, 1.0]
+radius = 0.5
+[[static]]
+kind = "plane"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+"""  # one blob on a floor, 40 steps: the small run of the file, resume and command-line tests
+
+
+def scene_file(tmp_path, text=ONE, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
 @pytest.fixture
 def tmp_out(tmp_path):
     return tmp_path / "out.h5"

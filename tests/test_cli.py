@@ -1,14 +1,15 @@
-"""The command line as a user meets it: exit codes, messages, files, signals."""
+"""The command line as a user meets it: exit codes, messages, files, signals, and bad input refused with one line."""
 
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-from conftest import blobsim, start_run
+from conftest import ONE, blobsim, cli, scene_file, start_run
 
 from blobcli import read_trajectory
 
@@ -134,6 +135,103 @@ def test_check_prints_the_resolved_scene_and_flags_bad_ones(tmp_path):
 def test_missing_scene_file_exits_2(tmp_path):
     r = blobsim("run", tmp_path / "none.toml")
     assert r.returncode == 2 and r.stderr.strip() == f"{tmp_path / 'none.toml'}: no such file"
+
+
+# Bad input: refused with one line, no traceback, before any work ------------------------
+BLOB = '[[blob]]\ncenter = [0.0, 1.0]\nradius = 0.5\n'
+
+
+def test_a_nul_in_a_path_or_name_is_refused(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    for text in (f'[output]\npath = "{victim}\\u0000.h5"\n', '[scene]\nname = "a\\u0000b"\n'):
+        code, _, err = cli("check", scene_file(tmp_path, text + ONE.split("[scene]\nsteps = 40\n")[1]))
+        assert code == 2 and "control characters" in err
+    assert victim.read_text() == "keep me"
+
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[scene]\niterations = 1000000000000\n" + BLOB, "scene.iterations: must be <= 1,000"),
+    ("[scene]\nsubsteps = 100000\n" + BLOB, "scene.substeps: must be <= 1,000"),
+    ("[scene]\nsubsteps = 1000\niterations = 1000\n" + BLOB.replace("radius = 0.5", "radius = 0.5\nvertices = 10000"),
+     "substeps × iterations × vertices is 10,000,000,000 per step"),
+    ("[scene]\nduration = 1e307\n" + BLOB, "scene.duration: duration / dt is"),
+    ("[scene]\ndt = 1e-320\n" + BLOB, "scene.dt: must be >= 1e-09 s"),
+    ("[scene]\nsteps = 9223372036854775808\n" + BLOB, "scene.steps: must be <= 1,000,000,000"),
+    ("[output]\nevery = 9223372036854775808\n" + BLOB, "output.every: must be <= 1,000,000,000"),
+    (BLOB.replace("0.5", "1" + "0" * 400), "blob[0].radius: must be finite"),
+    (BLOB.replace("[0.0, 1.0]", "[1e300, 1.0]"), "blob[0].center: must be within ±1e+06 m"),
+    (BLOB.replace("0.5", "5e-324"), "blob[0].radius: must be >= 1e-06 m"),
+    (BLOB + "vertices = 9223372036854775807\n", "blob[0].vertices: must be <= 100,000"),
+    (BLOB + "grid = [9223372036854775807, 1]\nspacing = [1.0, 1.0]\n", "blob[0].grid: must be <= 200,000"),
+    (BLOB + "grid = [3, 1]\nspacing = [600000.0, 1.0]\n", "blob[0].spacing: the grid reaches"),
+    ("blob = []\n", "blob: a scene needs at least one [[blob]]"),
+    (BLOB + '[[static]]\nkind = ["plane"]\n', "static[0].kind: must be one of plane"),
+    (BLOB + 'name = "a\\u0000b"\n', "blob[0].name: must not contain control characters"),
+    ('[scene]\nname = "' + "x" * 300 + '"\n' + BLOB, "scene.name: must be at most 100 characters"),
+    ('[scene]\nname = "../escape"\n' + BLOB, "scene.name: must not contain /"),
+    (BLOB + '[[static]]\nkind = "segment"\na = [0.0, 0.0]\nb = [5e-324, 0.0]\n', "static[0].b: segment must be at least"),
+])
+def test_bad_numbers_and_names_are_refused_with_one_line(tmp_path, text, message):
+    code, out, err = cli("run", scene_file(tmp_path, text), "-o", tmp_path / "o.h5", "-q")
+    assert code == 2 and message in err and "Traceback" not in err, err
+    assert not list(tmp_path.glob("o.h5*"))
+
+
+def test_a_huge_polygon_is_refused_before_the_quadratic_check(tmp_path):
+    pts = ", ".join(f"[{np.cos(t):.5f}, {np.sin(t):.5f}]" for t in np.linspace(0, 6.28, 100_001))
+    t0 = time.perf_counter()
+    code, _, err = cli("check", scene_file(tmp_path, f"[[blob]]\npoints = [{pts}]\n"))
+    assert code == 2 and "at most 5,000 points" in err
+    assert time.perf_counter() - t0 < 30  # the crossing-edges check is quadratic in the points: refused before it
+
+
+def test_check_reads_at_most_the_size_limit():
+    t0 = time.perf_counter()
+    code, _, err = cli("check", "/dev/zero")
+    assert code == 2 and "larger than" in err and time.perf_counter() - t0 < 10
+
+
+def test_overrides_that_overflow_are_refused(tmp_path):
+    code, _, err = cli("run", scene_file(tmp_path), "--steps", str(10**20), "-o", tmp_path / "o.h5")
+    assert code == 2 and "--steps" in err and "at most 1,000,000,000" in err
+    code, _, err = cli("run", scene_file(tmp_path), "--duration", "1e300", "-o", tmp_path / "o.h5")
+    assert code == 2 and "--duration" in err
+
+
+def test_edge_inputs_are_taken_or_refused_with_one_line(tmp_path):
+    traj = tmp_path / "t.h5"
+    assert cli("run", scene_file(tmp_path), "-o", traj, "-q")[0] == 0
+    code, out, _ = cli("render", traj, "-o", tmp_path / "adir")
+    assert code == 0 and f"drew {tmp_path / 'adir.png'}" in out and (tmp_path / "adir.png").exists()
+    code, out, _ = cli("compare", traj, traj, "--frames", "1000")
+    assert code == 0 and "verdict: same" in out
+    (tmp_path / "d").mkdir()
+    assert cli("view", tmp_path / "d")[0] == 2
+    bom = scene_file(tmp_path, "\ufeff" + ONE, "bom.toml")
+    assert cli("check", bom)[0] == 0
+    with h5py.File(traj, "r+") as f:
+        del f["restart/position"]
+        f["restart/position"] = np.zeros((3, 2))
+    code, _, err = cli("run", scene_file(tmp_path), "--resume", traj, "--steps", "80")
+    assert code == 2 and "restart/position has shape (3, 2)" in err
+
+
+def test_no_runtime_warnings_leak(tmp_path):
+    text = ONE.replace("radius = 0.5", "radius = 0.5\nvelocity = [0.0, -900000.0]")
+    r = subprocess.run([sys.executable, "-m", "blobcli", "run", str(scene_file(tmp_path, text)), "-o",
+                        str(tmp_path / "o.h5"), "-q"], capture_output=True, text=True, timeout=120)
+    assert r.returncode in (0, 1) and "Warning" not in r.stderr, r.stderr
+
+
+def test_check_warns_about_blobs_spawned_inside_colliders_or_each_other(tmp_path):
+    text = ONE.replace("center = [0.0, 1.0]", "center = [0.0, 0.2]") + BLOB.replace("1.0", "0.8")
+    code, _, err = cli("check", scene_file(tmp_path, text))
+    assert code == 0
+    assert "blob[0] (solo): 11 of its 32 vertices start inside static[0] (plane)" in err
+    assert "blob[0] (solo) and blob[1] (blob1) overlap at the start" in err
+    assert cli("check", ROOT / "scenes" / "pile.toml")[2] == ""  # touching exactly is not overlapping
 
 
 LONG = """

@@ -3,8 +3,7 @@ and extended XYZ (parsed here; OVITO, ASE and MDAnalysis read the same layout)."
 
 import h5py
 import numpy as np
-from conftest import cli
-from test_outputs import ONE
+from conftest import ONE, cli
 
 
 def run(tmp_path):

@@ -22,7 +22,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import cli
+from conftest import ONE, cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -139,7 +139,6 @@ GOOD = {}
 
 def good_trajectory(d):
     if "path" not in GOOD or not GOOD["path"].exists():
-        from test_outputs import ONE
         scene = d / "s.toml"
         scene.write_text(ONE)
         assert cli("run", scene, "-o", d / "good.h5", "-q")[0] == 0
@@ -230,7 +229,6 @@ def test_a_signal_in_the_first_fifth_of_a_second_exits_0_or_130_never_a_tracebac
     """The installed command, signalled while it starts (imports, scene, compile or load of the step).
     Before about 0.03 s (longer on a loaded machine) Python itself has not yet run any of blobsim's code
     (docs/cli.md), so the fuzzer starts at 0.1 s."""
-    from test_outputs import ONE
     d = tmp_path_factory.mktemp("early")
     (d / "s.toml").write_text(ONE)
     script = shutil.which("blobsim", path=str(Path(sys.executable).parent))

@@ -9,8 +9,7 @@ import subprocess
 import h5py
 import numpy as np
 import pytest
-from conftest import cli
-from test_outputs import ONE
+from conftest import ONE, cli
 
 UNIT_FACTOR = re.compile(r"^[A-Za-z]+([+-][1-9][0-9]*)?$")  # a symbol, optionally a signed non-zero power
 NUMBER = re.compile(r"^[0-9]+(\.[0-9]+)?$")

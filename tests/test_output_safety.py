@@ -14,8 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import cli
-from test_outputs import ONE  # one blob on a floor, 40 steps
+from conftest import ONE, cli, scene_file
 
 SWEEP = """[sweep]
 scene = "one.toml"
@@ -121,6 +120,55 @@ def test_impossible_output_places_are_bad_input_before_any_work(tmp_path, good):
     # a missing directory is made, as `run` makes it
     code, _, err = cli("export", good, "--format", "xyz", "-o", tmp_path / "nodir" / "x.xyz")
     assert code == 0 and (tmp_path / "nodir" / "x.xyz").is_file(), err
+
+
+def test_a_symlink_planted_at_the_partial_is_never_followed(tmp_path):
+    target = tmp_path / "target.txt"
+    target.write_text("keep me")
+    (tmp_path / "o.h5.partial").symlink_to(target)
+    code, _, err = cli("run", scene_file(tmp_path), "-o", tmp_path / "o.h5", "-q")
+    assert code == 2 and "already exists (a symlink)" in err
+    assert target.read_text() == "keep me" and not (tmp_path / "o.h5").exists()
+
+
+def test_bad_output_places_are_refused_before_any_work(tmp_path):
+    scene = scene_file(tmp_path)
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("x")
+    traj = tmp_path / "t.h5"
+    assert cli("run", scene, "-o", traj, "-q")[0] == 0
+    cases = [
+        (("run", scene, "-o", tmp_path / "adir"), "is a directory"),
+        (("run", scene, "-o", ""), "is empty"),
+        (("run", scene, "-o", "."), "names a directory"),
+        (("run", scene, "-o", "/"), "names a directory"),
+        (("run", scene, "-o", tmp_path / "afile" / "o.h5"), "is not a directory"),
+        (("run", scene, "-o", tmp_path / "ok.h5", "--rerun", tmp_path / "adir"), "is a directory"),
+        (("replay", traj, "-o", tmp_path / "adir"), "is a directory"),
+        (("render", traj, "-o", tmp_path / "afile" / "x.png"), "is not a directory"),
+        (("stress", "-o", tmp_path / "afile"), "is not a directory"),
+        (("study", scene, "-o", tmp_path / "afile"), "is not a directory"),
+        (("bench", "--quick", "--json", tmp_path / "afile" / "b.json"), "is not a directory"),
+    ]
+    for args, message in cases:
+        t0 = time.perf_counter()
+        code, _, err = cli(*args)
+        assert code == 2 and message in err and "Traceback" not in err, (args, err)
+        assert time.perf_counter() - t0 < 5, args  # refused up front, not after the work
+    assert not (tmp_path / "ok.h5").exists()
+
+
+def test_a_read_only_place_is_refused(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as a user who can write anywhere (root): read-only cannot be tested here")
+        code, _, err = cli("run", scene_file(tmp_path), "-o", ro / "o.h5")
+        assert code == 2 and "cannot write in" in err
+    finally:
+        ro.chmod(0o755)
 
 
 def test_a_bad_scheduler_is_bad_input():

@@ -22,7 +22,7 @@ import numpy as np
 
 VERTICES = 32
 RADIUS = 0.2  # m
-TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
+TARGETS = {  # the figure bench reports beside each measurement, for this machine class (2 cores); nothing asserts them
     "core_ns_per_vertex_substep_1000": 20.0,
     "piled_ms_per_substep_1000": 4.0,
     "peer_speedup_piled": 10.0,
@@ -35,7 +35,7 @@ TARGETS = {  # this machine class (2 cores); see issue "Speed: blobsim bench"
     "sweep_speedup_16_points": 3.0,
     "thread_speedup_2": 1.8,
     "sleeping_over_awake": 0.10,
-    "walls_share_piston": 0.10,  # the piston scene's moving walls and colliders, of its step (issue "Worlds that move")
+    "walls_share_piston": 0.10,  # share of the piston scene's step spent on its moving walls and colliders
     "side_by_side_over_alone": 2.0,  # two runs of the 60-blob pile started together, each against its time alone
     "beside_busy_over_alone": 2.5,  # one beside a busy-loop process
 }
