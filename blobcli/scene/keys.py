@@ -195,7 +195,8 @@ class BlobDef:
     grid: tuple = key((1, 1), "", "replicate nx × ny times", "int2", between(1, MAX_BLOBS))
     spacing: tuple | None = key(None, "m", "grid spacing [dx, dy]; required with a grid", "vec2", nonnegative_vec)
     count: int = key(1, "", "place this many copies at random, without overlap, in `region` (from [scene] seed; "
-                     "instead of grid and center); copies get _<k>", "int", between(1, MAX_BLOBS))
+                     "instead of grid and center): by random addition, or past it pushed apart (up to φ = 0.8 of "
+                     "bounding discs); copies get _<k>", "int", between(1, MAX_BLOBS))
     region: tuple | None = key(None, "m", "with count: [xmin, ymin, xmax, ymax], where the copies' bounding discs "
                                "must lie; default in a periodic box: the whole box", "box")
 
