@@ -34,6 +34,7 @@ STACK_REST_VERTEX = 5e-3  # m/s: fastest vertex of the settled stack.toml with s
 #   measured 0.00 in second 12-13 with stick points, 0.87 mm/s before them and 53 before the velocity stage)
 LOADED_AREA = 0.03  # relative area error of a light blob under 150× heavier ones, after impact
 GOLDEN_ATOL = 1e-9  # m: fresh runs vs the stored golden trajectories (same versions: bit-identical)
+ROUND_AGAIN = 0.01  # relative: Gish's height and width after the press is gone vs before it came down
 STATIC_PENETRATION = 1e-9  # m: depth of a vertex inside a static collider after a step
 FLOOR_ROUNDOFF = 1e-12  # m: a vertex resting on a plane is on it, never below by more than round-off
 PROJECTION_ROUNDOFF = 1e-14  # relative: one area projection of a small polygon (a few ulps of its coordinates)
@@ -248,3 +249,17 @@ class Stage:
 
     def call(self, name, *args):
         return getattr(self.lib, f"bc_{name}")(self.views.context, *args)
+
+
+def run_each(text, steps=None, each=None):
+    """Model and state after the scene's steps (or `steps`), calling each(n, state) after every step."""
+    from blobcli import build, build_params
+    from blobcli.sim.pipeline import advance
+    sc = scene(text)
+    model, state = build(sc)
+    params = build_params(sc)
+    for n in range(steps or params.steps):
+        advance(state, model, params, 1)
+        if each is not None:
+            each(n, state)
+    return model, state, params

@@ -56,7 +56,7 @@ def test_run_writes_a_complete_h5md_file_and_one_summary_line(tmp_path):
     assert "worst area error" in lines[0] and str(out) in lines[0]
     assert r.stderr == ""
     with h5py.File(out) as f:
-        assert f.attrs["complete"] and f.attrs["blobsim_format"] == 9
+        assert f.attrs["complete"] and f.attrs["blobsim_format"] == 10
         assert list(f["h5md"].attrs["version"]) == [1, 1]
         assert f["h5md/creator"].attrs["name"] == b"blobsim" and "name" in f["h5md/author"].attrs
         assert f["particles/blobs/box"].attrs["dimension"] == 2

@@ -93,7 +93,7 @@ def test_the_file_has_the_box_the_image_and_each_blob_whole_inside(tmp_path):
         box = f["particles/blobs/box"]
         assert list(box.attrs["boundary"]) == [b"periodic", b"periodic"] and box.attrs["dimension"] == 2
         edges = box["edges"][...]
-        assert edges.tolist() == [3.0, 2.5] and f.attrs["blobsim_format"] == 9
+        assert edges.tolist() == [3.0, 2.5] and f.attrs["blobsim_format"] == 10
         pos, image = f["particles/blobs/position/value"][...], f["particles/blobs/image/value"][...]
         offsets = f["parameters/blob_offsets"][...]
     centres = np.stack([pos[:, o:e].mean(axis=1) for o, e in zip(offsets[:-1], offsets[1:])], axis=1)
@@ -227,7 +227,8 @@ def test_rattlers_are_removed_repeatedly():
 def test_a_head_on_collision_across_the_edge_records_its_impulse_as_stress(tmp_path):
     """Two blobs (e = 0) meet across x = ±2 at 2 m/s each and stop. The contact stress integrates, step by step,
     to the branch vector times the impulse: Σ σ_xx A dt = Σ_steps (c_b - c_a)_x Δp_a,x (measured: to 0.04%),
-    negative (compression); after they stop, pressed together, their force and stress are zero."""
+    negative (compression); after they stop, pressed together, their force and stress are zero. The file's net
+    contact forces are equal and opposite (the pair's), carried while they collide and gone at rest."""
     from blobcli import simulate
     text = PAIR.format(box="periodic = [4.0, 3.0]", xa=1.4, xb=-1.4).replace("angular_velocity = 1.0\n", "").replace(
         "radius = 0.3\nmass = 0.6\nvelocity = [-2.0, 0.5]", "radius = 0.3\nvelocity = [-2.0, 0.0]").replace(
@@ -251,12 +252,17 @@ def test_a_head_on_collision_across_the_edge_records_its_impulse_as_stress(tmp_p
         pressure = f["observables/pressure/value"][...]
         contacts = f["observables/contacts/value"][...]
         fraction = f["observables/packing_fraction/value"][...]
+        net = f["observables/net_force/value"][...]
+        bearing = f["observables/bearing_contacts/value"][...]
     integral = stress[:, 0, 0].sum() * params.dt * 12.0
     assert expected < -0.9 and integral == pytest.approx(expected, rel=0.02)
     assert np.abs(stress[:, 1, 1]).sum() < 0.05 * np.abs(stress[:, 0, 0]).sum()  # along the line of centres
     assert pressure.max() > 0 and np.allclose(pressure, -0.5 * (stress[:, 0, 0] + stress[:, 1, 1]))
     assert abs(pressure[-1]) < 0.02 * pressure.max()  # at rest, pressed together: no force left
     assert contacts.max() == 1 and contacts[0].sum() == 0  # they touch each other (once), not before
+    assert np.array_equal(net[:, 0], -net[:, 1]) and np.all(bearing <= contacts)
+    hit = np.abs(net[:, 0, 0]).argmax()
+    assert bearing[hit].tolist() == [1, 1] and np.abs(net[-1]).max() < 0.02 * np.abs(net[hit, 0, 0])
     polygon = 16 * np.sin(2 * np.pi / 32)  # a 32-gon's area over r²
     assert fraction[0] == pytest.approx(polygon * (0.16 + 0.09) / 12.0, rel=1e-12)
     assert np.allclose(fraction, fraction[0], rtol=1e-3)  # (pressed, the blobs lose a little area)

@@ -7,7 +7,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import GALILEAN, STATIC_PENETRATION, blobsim, scene
+from conftest import GALILEAN, ROUND_AGAIN, STATIC_PENETRATION, blobsim, scene
+from conftest import run_each as run
 
 from blobcli import build, build_params, parse_scene
 from blobcli.scene.schema import SceneError
@@ -20,7 +21,6 @@ PISTON_FORCE = 0.01  # relative: the recorded force on a piston at rest vs its l
 PISTON_REST = 1e-3  # m/s: a piston at rest moves slower than this
 LOADED_PACKING = 0.02  # relative: a loaded wall on a packing at rest: the floor's force, the stress
 PRESSED_AREA = 0.01  # relative area error of Gish under the press (scenes/press.toml: 0.81% measured)
-ROUND_AGAIN = 0.01  # relative: Gish's height and width after the press is gone vs before it came down
 RIDE = 0.01  # relative: a blob riding a platform goes at the platform's speed
 
 PLATFORM = """[scene]
@@ -38,18 +38,6 @@ size = [40.0, 1.0]
 friction = 0.8
 {motion}
 """
-
-
-def run(text, steps=None, each=None):
-    """Model and state after the scene's steps (or `steps`), calling each(n, state) after every step."""
-    sc = scene(text)
-    model, state = build(sc)
-    params = build_params(sc)
-    for n in range(steps or params.steps):
-        advance(state, model, params, 1)
-        if each is not None:
-            each(n, state)
-    return model, state, params
 
 
 def centres(v, motion):
@@ -306,45 +294,6 @@ path = [[3.0, 0.0, 0.0, 0.0], [4.0, 1.9, 0.0, 0.0]]
     assert state.pos[:, 0].mean() > 0.1
 
 
-def test_a_sleeping_blob_on_a_platform_that_drops_away_falls_after_it():
-    """A blob asleep on a platform that then drops 0.5 m at 1 m/s: the platform leaves it, which wakes it (asleep it
-    would hang in the air where the platform was), and it lands on the platform again."""
-    text = """[scene]
-duration = 4.0
-[[blob]]
-center = [0.0, 0.3]
-radius = 0.3
-[[static]]
-kind = "box"
-center = [0.0, -0.5]
-size = [4.0, 1.0]
-path = [[2.5, 0.0, 0.0, 0.0], [3.0, 0.0, -0.5, 0.0]]
-"""
-    awake = []
-    _, state, _ = run(text, each=lambda n, s: awake.append(int(s.awake[0])))
-    assert awake[145] == 0  # asleep at 2.43 s, before the platform moves
-    assert state.pos[:, 1].min() == pytest.approx(-0.5, abs=STATIC_PENETRATION)  # on the platform, where it is now
-
-
-def test_a_press_that_lifts_off_a_sleeping_blob_wakes_it_and_it_comes_back_round():
-    """scenes/press.toml with the press held at its lowest for 2 s instead of 1 (from 2 s to 4 s, lifted by 4.5 s):
-    Gish falls asleep flattened under it; the press lifting off it wakes it, and it is round again 2.5 s later."""
-    text = (SCENES / "press.toml").read_text().replace("duration = 5.0", "duration = 7.0").replace(
-        "[3.0, 0.0, -0.6, 0.0], [3.5, 0.0, 0.0, 0.0]", "[4.0, 0.0, -0.6, 0.0], [4.5, 0.0, 0.0, 0.0]")
-    assert "[4.5, 0.0, 0.0, 0.0]" in text
-    flat, shapes = [], {}
-
-    def each(n, s):
-        if n + 1 == 230:  # 3.83 s: under the press, which holds still
-            flat.append(int(s.awake[0]))
-        if n + 1 in (60, 420):  # before the press comes down (t = 1 s), and 2.5 s after it is gone
-            shapes[n + 1] = np.ptp(s.pos, axis=0)
-
-    run(text, each=each)
-    assert flat == [0]
-    assert np.abs(shapes[420] / shapes[60] - 1.0).max() < ROUND_AGAIN
-
-
 @pytest.mark.parametrize("bad, message", [
     ("velocity = [1.0, 0.0]\nload = 10.0", r"static\[0\].load: a collider moves in one way only"),
     ("pivot = [0.0, 0.0]", r"static\[0\].pivot: only for a collider that turns"),
@@ -447,7 +396,7 @@ def test_the_walls_are_recorded_and_a_resumed_run_is_bit_identical_mid_motion(tm
     report = compare_files(whole, resumed)
     assert report.same, report.text()
     with h5py.File(whole) as f:
-        assert f.attrs["blobsim_format"] == 9
+        assert f.attrs["blobsim_format"] == 10
         position = f["observables/statics/position/value"][...]
         assert position.shape == (151, 2, 2) and f["observables/statics/force/value"].shape == (151, 2, 2)
         assert np.allclose(position[:, 1, 1][[0, 60, 120]], [1.3, 1.3, 0.7])  # the press's path, recorded

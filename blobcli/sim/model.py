@@ -276,8 +276,8 @@ def self_contact_records(vertices: int, blobs: int) -> tuple:
 
 def packing_records(blobs: int) -> tuple:
     """State.packing for a scene of this many blobs in a periodic box (0: an open world, which keeps none)."""
-    return (np.zeros((blobs, 4)), np.zeros((PAIRS_PER_BLOB * blobs, 2), np.int64), np.zeros((PAIRS_PER_BLOB * blobs, 2)),
-            np.zeros(1, np.int64))
+    pairs = PAIRS_PER_BLOB * blobs
+    return np.zeros((blobs, 4)), np.zeros((pairs, 2), np.int64), np.zeros((pairs, 2)), np.zeros(1, np.int64)
 
 
 def build_params(scene: Scene) -> Params:

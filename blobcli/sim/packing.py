@@ -17,7 +17,14 @@ stress integrates to Σ_steps (c_b - c_a) Δp_a (tests/test_periodic.py: to 0.04
 stress (N/m in 2D): negative under
 compression; the pressure is p = -tr(σ) / 2, positive under compression.
 
-Contacts: the blobs each blob touched in the step's last substep (a contact that pushed). Rattlers: blobs
+Contact forces: each touching pair's impulses over the step's last substep (all three kinds, as the stress
+above) over its length h, F on the pair's first blob; its normal force f = -F · n̂ (n̂ the unit vector from the
+first blob's centre to the second's, nearest images), positive when the contact pushes. A blob's net contact force
+is the sum of its pairs' F (−F on the second): zero for a blob in mechanical equilibrium without gravity or drive.
+
+Contacts: the blobs each blob touched in the step's last substep (a contact that pushed); a contact carries force
+when its f is above BEARING of the mean f of the pushing contacts (a contact whose pushes the velocity stages take
+back, at rest, touches and carries nothing). Rattlers: blobs
 too loosely held to carry load, removed one after another (their partners lose a contact each) until every
 blob left has enough: d + 1 = 3 contacts in 2D without friction (normal forces alone balance only
 with three), d = 2 with friction (two contacts balance when the chord between them lies within both
@@ -29,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+BEARING = 0.01  # a contact carries force when its normal force is above this fraction of the mean push
 RATTLER_BELOW = 3  # contacts: a blob with fewer is a rattler, without friction (2D: d + 1) ...
 FRICTIONAL_RATTLER_BELOW = 2  # ... and with (d)
 
@@ -90,3 +98,33 @@ def pressure(sigma: np.ndarray) -> float:
 def packing_fraction(area: np.ndarray, box) -> float:
     """The blobs' area over the box's."""
     return float(np.abs(area).sum() / (box[0] * box[1]))
+
+
+def centres(position: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(B, 2) m: each blob's vertex average, from the positions (N, 2)."""
+    return np.add.reduceat(position, offsets[:-1]) / np.diff(offsets)[:, None]
+
+
+def normal_forces(touching: np.ndarray, force: np.ndarray, centre: np.ndarray, box, tilt: float = 0.0) -> np.ndarray:
+    """(P,) N: each touching pair's normal force f = -F · n̂, positive when it pushes (module docstring), n̂ along
+    the nearest image of the branch vector in the box (L_x, L_y), its rows sheared by `tilt` = γ L_y."""
+    d = centre[touching[:, 1]] - centre[touching[:, 0]]
+    rows = np.round(d[:, 1] / box[1])
+    d[:, 0] -= rows * tilt
+    d[:, 1] -= rows * box[1]
+    d[:, 0] -= box[0] * np.round(d[:, 0] / box[0])
+    return -(force * d).sum(axis=1) / np.hypot(d[:, 0], d[:, 1])
+
+
+def net_forces(touching: np.ndarray, force: np.ndarray, blobs: int) -> np.ndarray:
+    """(B, 2) N: each blob's net contact force, Σ over its pairs of ±F."""
+    net = np.zeros((blobs, 2))
+    np.add.at(net, touching[:, 0], force)
+    np.add.at(net, touching[:, 1], -force)
+    return net
+
+
+def bearing(normal: np.ndarray) -> np.ndarray:
+    """(P,) bool: the contacts that carry force, f > BEARING × the mean push (none when nothing pushes)."""
+    pushing = normal > 0.0
+    return normal > BEARING * normal[pushing].mean() if pushing.any() else np.zeros(len(normal), bool)

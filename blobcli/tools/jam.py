@@ -29,7 +29,8 @@ SEED_MAX = 2 ** 63 - 1  # [scene] seed at most (scene/schema.py)
 DEFAULT_PRESSURE = 3e-6  # p̃* = p* ᾱ: as near zero as the relaxation resolves (sim/jamming.py)
 DEFAULT_DRAG = 1.0  # 1/s: the relaxation's drag when the scene has none
 MAX_SEEDS = 10_000  # --seeds at most: each seed is a task, a trajectory file and a row of the JSON
-KEYS = ("phi_j", "z_j", "z_j_all", "pressure", "reduced_pressure", "rattlers", "beta")  # per seed, in the JSON
+KEYS = ("phi_j", "z_j", "z_j_touching", "z_j_all", "pressure", "reduced_pressure", "rattlers", "balance",
+        "beta")  # per seed, in the JSON
 
 
 def jam_problem(scene: Scene, seeds: int = 1) -> tuple[tuple, str] | None:
@@ -88,6 +89,7 @@ def run_seed(base: Scene, seed: int, target: float, h5: str) -> dict:
     params = build_params(scene)
     row = {"seed": scene.settings.seed, "status": "failed", "file": h5, "path": []}
     writer = TrajectoryWriter(h5, scene, model, params, box_changes=True)
+    writer.file.attrs["jam_force_balance_tolerance"] = jamming.BALANCE
     steps = 0
 
     def record(found, state, params):
@@ -96,6 +98,7 @@ def run_seed(base: Scene, seed: int, target: float, h5: str) -> dict:
         area, kinetic = blob_measures(state, model)
         writer.append(steps, state, area, kinetic, box=params.box)
         row["path"].append(found._asdict())
+        writer.file.attrs["jam_balance"] = np.array([p["balance"] for p in row["path"]])
 
     try:  # a signal is only recorded, and stops the seed between two compiled calls (chosen_threads)
         with interrupts.deferred(), ThreadChoice(None, model.parallel) as choice:
@@ -114,7 +117,8 @@ def run_seed(base: Scene, seed: int, target: float, h5: str) -> dict:
     writer.close(complete=True)
     j = result.jammed
     past = [p._asdict() for p in result.past]
-    row.update(status="ok", phi_j=j.phi, z_j=j.z, z_j_all=j.z_all, pressure=j.pressure, reduced_pressure=j.reduced,
+    row.update(status="ok", phi_j=j.phi, z_j=j.z, z_j_touching=j.z_touching, z_j_all=j.z_all, pressure=j.pressure,
+               reduced_pressure=j.reduced, balance=j.balance,
                rattlers=j.rattlers, beta=contact_exponent(excess_contacts(j._asdict(), past)), past=past)
     return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()}
 
@@ -182,7 +186,9 @@ def summary(rows: list[dict]) -> dict:
             mean[f"{k}_sem"] = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else math.nan
         # one fit of the seeds' mean z - z_J at each Δφ (a seed's own few scatter with its z_J)
         mean["beta"] = contact_exponent([(x, y) for x, y in mean_excess_contacts(ok) if y > 0.0 and x > 0.0])
-    return {"seeds": seeds, "mean": mean}
+    from ..sim.jamming import BALANCE
+    from ..sim.packing import BEARING
+    return {"seeds": seeds, "mean": mean, "force_balance_tolerance": BALANCE, "bearing_fraction": BEARING}
 
 
 def report(figures: dict) -> str:
@@ -195,9 +201,10 @@ def report(figures: dict) -> str:
     fit = (f"z - z_J ~ (phi - phi_J)^{m['beta']:.2f}" if math.isfinite(m["beta"])
            else "no fit of z - z_J against phi - phi_J (fewer than 3 points past onset with z rising)")
     return (f"phi_J = {m['phi_j']:.4f}{pm.format(m['phi_j_sem'])}, "
-            f"z_J = {m['z_j']:.3f}{pm.format(m['z_j_sem'])} (rattlers removed; {m['z_j_all']:.3f} with them), "
+            f"z_J = {m['z_j']:.3f}{pm.format(m['z_j_sem'])} (contacts that carry force, rattlers removed; "
+            f"{m['z_j_touching']:.3f} touching; {m['z_j_all']:.3f} with the rattlers), "
             f"pressure {m['pressure']:.3g} N/m (p alpha = {m['reduced_pressure']:.2e}), "
-            f"{m['rattlers']:.1f} rattlers, {fit}; "
+            f"{m['rattlers']:.1f} rattlers, net force at most {m['balance']:.3f} of the mean push, {fit}; "
             f"{k} seed{'s' if k > 1 else ''}" + (" (mean ± standard error)" if k > 1 else ""))
 
 
@@ -222,7 +229,8 @@ def run_jam(scene: Scene, out: Path, seeds: int, target: float, scheduler=None, 
                 break
             if row["status"] == "ok":
                 announce(f"  seed {row['seed']}: phi_J = {row['phi_j']:.4f}, z_J = {row['z_j']:.3f} "
-                         f"({row['rattlers']} rattlers), p alpha = {row['reduced_pressure']:.2e}")
+                         f"({row['rattlers']} rattlers), p alpha = {row['reduced_pressure']:.2e}, "
+                         f"net force <= {row['balance']:.3f} of the mean push")
             else:
                 announce(f"  seed {row['seed']}: {row['status']}")
     except (KeyboardInterrupt, Exception) as e:

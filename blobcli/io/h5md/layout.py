@@ -9,16 +9,19 @@ from __future__ import annotations
 
 import numpy as np
 
-FORMAT_VERSION = 9
+FORMAT_VERSION = 10
 # Format 1 lacks /connectivity, particles/blobs/mass and the units module; formats 1 and 2 store impact_speed
 # in /restart; formats 1-3 have no sleeping (no /observables/awake: every blob was awake); formats 1-5 are not
 # resumable by this blobsim (their /restart lacks the stick points (1-4) or where each blob's rest began (5));
 # formats 1-6 have no moving colliders (no /observables/statics, no /restart/static_pose: every collider at rest);
-# formats 1-7 have no periodic box (their box's boundary is "none").
-READS_FORMATS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
+# formats 1-7 have no periodic box (their box's boundary is "none"); formats 8-9 have no contact forces (no
+# bearing_contacts, net_force).
+READS_FORMATS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
 LAYOUT = """\
-/                            attrs: complete (bool), blobsim_format = 9, stopped (str: why a run ended early),
-                                    warnings (str: problems seen in the final state; may be absent)
+/                            attrs: complete (bool), blobsim_format = 10, stopped (str: why a run ended early),
+                                    warnings (str: problems seen in the final state; may be absent); files of
+                                    `blobsim jam`: jam_balance (float64 [frames]: each packing's force balance),
+                                    jam_force_balance_tolerance (float)
 /h5md                        attrs: version = [1, 1]
     author                   attrs: name (fixed-length ASCII)
     creator                  attrs: name = "blobsim", version (fixed-length ASCII)
@@ -58,6 +61,10 @@ LAYOUT = """\
     packing_fraction/{value,step,time}  value float64 [frames]: the blobs' area over the box's
     contacts/{value,step,time}        value int32 [frames, blobs]: the blobs each touches (contacts that pushed in
                                       the frame's step's last substep)
+    bearing_contacts/{value,step,time}  value int32 [frames, blobs] (format 10): of those, the contacts that carry
+                                      force (normal force above 0.01 of the mean push)
+    net_force/{value,step,time}       value float64 [frames, blobs, 2]  unit "N" (format 10): each blob's net
+                                      contact force over the frame's step's last substep
     rattler/{value,step,time}         value uint8 [frames, blobs]: 1 for a rattler (fewer than 3 contacts, 2 when
                                       the blobs have friction; removed repeatedly)
     pressure/{value,step,time}        value float64 [frames]  unit "N m-1": -tr(stress) / 2, > 0 compressed

@@ -138,6 +138,9 @@ class TrajectoryWriter:
             self.packing_series = {"packing_fraction": _series(obs, "packing_fraction", (), chunk=self.block),
                                    "contacts": _series(obs, "contacts", (b,), dtype=np.int32, chunk=self.block),
                                    "rattler": _series(obs, "rattler", (b,), dtype=np.uint8, chunk=self.block),
+                                   "bearing_contacts": _series(obs, "bearing_contacts", (b,), dtype=np.int32,
+                                                               chunk=self.block),
+                                   "net_force": _series(obs, "net_force", (b, 2), unit="N", chunk=self.block),
                                    "pressure": _series(obs, "pressure", (), unit="N m-1", chunk=self.block),
                                    "stress": _series(obs, "stress", (2, 2), unit="N m-1", chunk=self.block)}
             self._packing = {name: np.empty((self.block, *ds["value"].shape[1:]), ds["value"].dtype)
@@ -206,7 +209,7 @@ class TrajectoryWriter:
                 self._pos[k, :, 0] -= image[:, 1] * tilt
             if self.edges is not None:
                 self._edges[k] = [[sides[0], 0.0], [tilt, sides[1]]] if self.sheared else sides
-            self._measure_packing(k, step, state, area, sides)
+            self._measure_packing(k, step, state, area, sides, tilt, centre)
         np.multiply(area, self._sign, out=self._area[k])
         self._kinetic[k] = kinetic
         self._awake[k] = state.awake
@@ -223,16 +226,21 @@ class TrajectoryWriter:
         if self._count == self.block or time.monotonic() - self._last_flush > FLUSH_SECONDS:
             self.flush()
 
-    def _measure_packing(self, k, step, state, area, sides):
-        """Frame k's packing_fraction, contacts, rattlers, pressure and stress (sim/packing.py)."""
-        virial, touching, _, count = state.packing
-        touching = touching[:count[0]]
+    def _measure_packing(self, k, step, state, area, sides, tilt, centre):
+        """Frame k's packing_fraction, contacts (all, and those that carry force), rattlers, net contact forces,
+        pressure and stress (sim/packing.py)."""
+        virial, touching, force, count = state.packing
+        touching, force = touching[:count[0]], force[:count[0]]
         blobs = len(area)
+        normal = packing.normal_forces(touching, force, centre, sides, tilt)
+        out_bearing = touching[packing.bearing(normal)]
         sigma = packing.stress(virial, self.dt, sides) if step > 0 else np.zeros((2, 2))
         out = self._packing
         out["packing_fraction"][k] = packing.packing_fraction(area, sides)
         out["contacts"][k] = packing.contact_counts(touching, blobs)
         out["rattler"][k] = packing.rattlers(touching, blobs, self._rattler_below)
+        out["bearing_contacts"][k] = packing.contact_counts(out_bearing, blobs)
+        out["net_force"][k] = packing.net_forces(touching, force, blobs) if step > 0 else 0.0
         out["stress"][k] = sigma
         out["pressure"][k] = packing.pressure(sigma)
 
