@@ -172,11 +172,10 @@ def test_with_friction_two_contacts_hold_a_blob():
 @pytest.mark.slow
 def test_a_small_bidisperse_packing_jams_near_the_published_point(tmp_path):
     """32 blobs (an eighth of the shipped scene), two seeds: φ_J and z_J within loose bounds of the published
-    0.842 and 4 (O'Hern et al. 2003; measured 0.8325 and 0.8124, z_J 4.07 and 3.93); excess contacts grow
-    past onset: the packing φ_J + 0.02 has more than z_J + 0.1 (measured 4.31 and 4.21; one contact more
-    among ~28 blobs is 0.07). The exponent of that growth is a figure of the full scene (docs/jamming.md):
-    in a packing this small z moves by whole contacts, and the fit over two seeds scatters (0.02 and 0.88
-    for two versions of the contact solve); each seed's trajectory is a complete file whose box shrinks to
+    0.842 and 4 (O'Hern et al. 2003), each jammed packing in force balance and its balance recorded; excess
+    contacts grow past onset: the packing φ_J + 0.02 has more than z_J + 0.1 (one contact more among ~28 blobs
+    is 0.07). The exponent of that growth is a figure of the full scene (docs/jamming.md):
+    in a packing this small z moves by whole contacts, and the fit over two seeds scatters; each seed's trajectory is a complete file whose box shrinks to
     the jammed packing."""
     figures, out = jam(tmp_path, "small", seeds=2)
     for s in figures["seeds"]:
@@ -210,8 +209,8 @@ def test_a_small_bidisperse_packing_jams_near_the_published_point(tmp_path):
 
 @pytest.mark.slow
 def test_friction_jams_the_packing_looser_with_fewer_contacts(tmp_path):
-    """The same start with μ = 1: φ_J at least 0.02 and z_J at least 0.3 below frictionless (measured 0.743
-    and 2.93 against 0.813 and 4.13, seed 0; the shipped scenes: docs/jamming.md)."""
+    """The same start with μ = 1: φ_J at least 0.02 and z_J at least 0.3 below frictionless (the shipped scenes:
+    0.764 and 3.09 against 0.842 and 4.05, docs/jamming.md)."""
     frictionless, _ = jam(tmp_path, "smooth")
     rough, _ = jam(tmp_path, "rough", mu=1.0)
     a, b = frictionless["seeds"][0], rough["seeds"][0]

@@ -273,7 +273,7 @@ def chart(rows: list[dict], png: Path, target: float) -> None:
     bottom.axhline(4.0, color="0.6", lw=0.6, ls="--")
     top.set_yscale("log")
     top.set_ylabel("pressure p ᾱ")
-    bottom.set_ylabel("contacts per blob z (rattlers removed)")
+    bottom.set_ylabel("contacts per blob z (rattlers removed)")  # those that carry force
     bottom.set_xlabel("packing fraction φ")
     top.set_title(f"compression to jamming, {len(ok)} seed{'s' if len(ok) != 1 else ''} (circles: jammed)")
     fig.tight_layout()

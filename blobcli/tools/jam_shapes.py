@@ -6,8 +6,8 @@ A blob's perimeter rests at its regular polygon's, p₀ = 2 n R sin(π/n), and i
 polygon's, so 𝒜 = 𝒜_n / pressure, 𝒜_n = n tan(π/n) / π the regular n-gon's (1.0032 at n = 32): each 𝒜 asked is
 the scene with every blob's `pressure` = 𝒜_n / 𝒜. Each is jammed by `blobsim jam`'s protocol (tools/jam.py,
 sim/jamming.py) from `--seeds` starts; `--count` copies per blob table (the box scaled to keep the start's φ).
-Writes DIR/summary.json (every 𝒜's scene text, pressure and the jam figures) and DIR/shapes.png, and prints a
-table.
+Writes DIR/<scene>-shape-<𝒜>/ (each 𝒜's seeds and summary.json, as `blobsim jam` writes them), DIR/summary.json
+(every 𝒜's scene text, pressure and the jam figures) and DIR/shapes.png, and prints a table.
 """
 
 from __future__ import annotations
@@ -89,6 +89,7 @@ def main(argv=None) -> int:
         out = args.out / scene.name
         seeds, _ = jam.run_jam(scene, out, args.seeds, jam.DEFAULT_PRESSURE, announce=lambda line: None)
         figures = jam.summary(seeds)
+        jam.write_json(figures, out / "summary.json")  # as `blobsim jam` writes it
         m = figures["mean"]
         rows.append({"shape": shape, "pressure": scene.blobs[0].pressure, "phi_j": m.get("phi_j"),
                      "phi_j_sem": m.get("phi_j_sem"), "z_j": m.get("z_j"), "jammed": len(figures["seeds"]),
