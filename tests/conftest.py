@@ -3,6 +3,7 @@ with what it bounds; tests take test *inputs* (a compare --atol to exercise, a d
 
 import contextlib
 import io
+import os
 import signal
 import subprocess
 import sys
@@ -83,6 +84,18 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long runs (seconds each): `pytest -m slow` runs them (CI does), plain `pytest` skips them")
     config.addinivalue_line("markers", "alone: a timing bound that holds with no other test running beside it (CI runs "
                             "these by themselves: pytest -m 'slow and alone' -n 0)")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def one_thread_beside_other_workers():
+    """pytest-xdist runs a worker process per core: a step called here (not through `blobsim run`'s ThreadChoice,
+    which adapts) on every core's threads beside another worker spins out each barrier of the compiled step
+    (io/threads.py: 10 to 100× slower). So each worker's own calls take one thread; a test of thread counts sets
+    its own, and a CLI run in a subprocess chooses as a user's would."""
+    if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+        from blobcli.core import load
+        load()[1].bc_set_threads(1)
+    yield
 
 
 def scene(text: str):
