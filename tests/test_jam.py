@@ -316,12 +316,43 @@ def test_blobs_with_slack_perimeters_jam_denser(tmp_path):
 @pytest.mark.slow
 def test_a_jammed_packing_out_of_force_balance_is_not_read(monkeypatch):
     """With a tolerance the step cannot reach (1e-6 of the mean push), the protocol says the jammed packing is
-    not in force balance, and how far, instead of returning its φ."""
+    not in force balance, and how far, instead of returning its φ: here the bracket closes on the first jammed
+    packing (a bracket of 0.02 is as tight as asked), which does not balance."""
     from blobcli.scene.parse import parse_scene
     from blobcli.sim.model import build, build_params
     monkeypatch.setattr(jamming, "BALANCE", 1e-6)
     monkeypatch.setattr(jamming, "MAX_BALANCE", jamming.MAX_RELAX)
+    monkeypatch.setattr(jamming, "SMALLEST_STEP", 0.02)
     scene = parse_scene(SMALL.format(seed=0, mu=0.0), "small.toml")
     model, state = build(scene)
     with pytest.raises(ValueError, match=r"not in force balance after \d+ steps: a blob's net contact force is"):
         jamming.jam(state, model, build_params(scene), 3e-6)
+
+
+def test_a_try_within_the_pressure_tolerance_that_does_not_balance_is_passed_over(monkeypatch):
+    """The bisection reads a jammed packing only in force balance: a try at p* that does not balance closes the
+    bracket from its side and the bisection goes on to one that does. The relaxation is scripted (p̃ rising
+    through p* at φ = 0.842, rigid from 0.82, the first try within the tolerance out of balance)."""
+    from blobcli.scene.parse import parse_scene
+    from blobcli.sim.measure import blob_measures
+    from blobcli.sim.model import build, build_params
+    target, unbalanced = 3e-6, []
+
+    def scripted(state, model, params, target, run=None):
+        phi = packing.packing_fraction(blob_measures(state, model)[0], params.box)
+        reduced = max(phi - 0.80, 0.0) / 0.042 * target
+        near = abs(reduced / target - 1.0) < jamming.PRESSURE_TOLERANCE
+        balance = 0.5 if near and not unbalanced else 0.05
+        if balance > BALANCE:
+            unbalanced.append(phi)
+        return jamming.Packing(phi=phi, pressure=reduced, reduced=reduced, z=4.0, z_touching=4.2, z_all=4.2,
+                               rattlers=0, kinetic=0.0, steps=120, rigid=phi > 0.82, balance=balance)
+
+    monkeypatch.setattr(jamming, "relax", scripted)
+    scene = parse_scene(SMALL.format(seed=0, mu=0.0), "small.toml")
+    model, state = build(scene)
+    found = jamming.jam(state, model, build_params(scene), target)
+    assert len(unbalanced) == 1 and found.jammed.phi != unbalanced[0]
+    assert found.jammed.balance <= BALANCE
+    assert abs(found.jammed.reduced / target - 1.0) < jamming.PRESSURE_TOLERANCE
+    assert [p.phi for p in found.path].index(unbalanced[0]) < [p.phi for p in found.path].index(found.jammed.phi)

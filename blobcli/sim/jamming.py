@@ -12,8 +12,10 @@ stiffness and the unit of pressure stay as the scene made them. From the loosest
 COARSE_STEP while it is plainly loose (p < p* / LOOSE), then by FIRST_STEP (at most half way to φ = 1, where
 blobs of slack perimeter tile the plane), until a packing is jammed; then φ is bisected between the densest
 unjammed packing and the loosest jammed one, each try starting again from the unjammed packing, until a
-jammed packing's p is within PRESSURE_TOLERANCE of p* or the bracket is narrower than SMALLEST_STEP. That
-packing is the jammed one: φ_J, its contact number z_J (contacts that carry force, rattlers removed) and p.
+jammed packing's p is within PRESSURE_TOLERANCE of p* and it is in force balance, or the bracket is narrower
+than SMALLEST_STEP. That packing is the jammed one: φ_J, its contact number z_J (contacts that carry force,
+rattlers removed) and p. A try within the tolerance that does not balance is not read: it closes the bracket
+from the side its p is on (below p* or above), and the bisection goes on.
 Past it, the packing is compressed by PAST_ONSET more (each from the jammed packing) to measure how
 contacts grow, z - z_J ∝ (φ - φ_J)^β (β = 1/2 for soft discs: O'Hern et al. 2003).
 
@@ -32,8 +34,8 @@ f̄ (both the means over the block's last AVERAGE steps: force_balance), and its
 by under SETTLED of itself in the block) or MAX_RELAX steps have run. It ends early when the answer is plain:
 below jamming p falls, and once it is under p* / CLEARLY the packing is unjammed (no network to balance).
 An unjammed packing ends after MAX_RELAX steps in any case; a jammed one (rigid, p within PRESSURE_TOLERANCE
-of p* or above) goes on, to
-MAX_BALANCE steps, until it balances: one that does not is not read (jam says so instead of giving its φ).
+of p* or above) goes on, to MAX_BALANCE steps, until it balances: one that does not is not read (the
+bisection goes on past it; when the bracket closes on it, jam says so instead of giving a φ).
 The pressure read is the mean over the same AVERAGE steps (the virial of one step is noisy: sim/packing.py).
 BALANCE is what the step reaches: a jammed packing held at one φ creeps, the worst blob's net force between
 0.05 and 0.3 of f̄ from block to block (the same averaged over 120 or 600 steps), and that does not fall with
@@ -223,7 +225,8 @@ def jam(state: State, model: Model, params: Params, target: float,
         state = copy_state(low[1])
         params = compress(state, model, low[2], phi)
         found = (tried(state, params), state, params)
-        if found[0].rigid and abs(found[0].reduced / target - 1.0) < PRESSURE_TOLERANCE:
+        if (found[0].rigid and abs(found[0].reduced / target - 1.0) < PRESSURE_TOLERANCE
+                and found[0].balance <= BALANCE):
             break
         if found[0].reduced < target or not found[0].rigid:
             low = found
