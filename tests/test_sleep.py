@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from conftest import (
     BLOB_PENETRATION,
+    IMPACT_SETTLED,
     LAYOUT_REST_CENTRE,
     LAYOUT_REST_VERTEX,
     PILE_ASLEEP,
@@ -287,3 +288,15 @@ def test_bad_sleep_settings_are_refused(tmp_path, key, value, message):
     r = blobsim("run", path, "-o", tmp_path / "x.h5")
     assert r.returncode == 2 and f"bad.toml:2: scene.{key}: {message}" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.slow
+def test_a_blob_dropped_onto_a_resting_pile_leaves_the_far_blobs_at_rest_within_two_seconds():
+    """`python -m blobcli.tools.piles --impact`: the 60-blob pile at rest, a blob dropped onto its end from about
+    3 m. The impact shoves the far blobs (it reached them: the dropped blob fell onto the pile), and two seconds
+    later they are at rest again."""
+    from blobcli.tools.piles import impact
+    rows = impact(60)
+    assert len(rows) == 9 and rows[-1][0] == pytest.approx(2.0)
+    assert max(centre for _, centre, _ in rows) > 0.05
+    assert rows[-1][1] < IMPACT_SETTLED, f"{1e3 * rows[-1][1]:.2f} mm/s two seconds after the impact"

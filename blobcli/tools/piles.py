@@ -5,8 +5,9 @@ scenes/stack.toml (or, with `--layout NAME ...`, for piles unlike the bench's ow
 fastest blob centre and the fastest vertex over the last second before
 `--seconds` with sleeping off, and with sleeping on (the default) the share of blobs asleep and
 the wall time of that last second against the same second awake; with `--each-second-from S`,
-the pile's fastest centre and vertex (sleeping off) in every second from S to `--seconds`. Figures,
-not tests: the tests (tests/test_sleep.py) hold smaller cases to tolerances.
+the pile's fastest centre and vertex (sleeping off) in every second from S to `--seconds`; with
+`--impact`, how a blob dropped onto the pile's end moves the blobs far from it. Figures, not tests:
+the tests (tests/test_sleep.py) hold smaller cases to tolerances.
 """
 
 from __future__ import annotations
@@ -125,6 +126,61 @@ LAYOUTS = {
 }
 
 
+# One more blob of the pile's kind, on a frictionless shelf `drop` m above the pile's top over its last column; at
+# `at` s the shelf slides 3 m aside in 0.05 s and the blob falls onto the pile's end.
+DROPPED_ON_A_SHELF = """
+[[blob]]
+name = "dropped"
+center = [{x}, {y}]
+radius = {radius}
+vertices = {vertices}
+[[static]]
+kind = "box"
+center = [{x}, {shelf}]
+size = [{width}, 0.1]
+friction = 0.0
+static_friction = 0.0
+path = [[{at}, 0.0, 0.0, 0.0], [{gone}, 3.0, 0.0, 0.0]]
+"""
+
+
+def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str = "") -> list[tuple[float, ...]]:
+    """The bench's pile of `blobs` (sleeping off) at rest `at` s after its drop, and a blob dropped onto its end
+    from about `drop` m: every quarter second for two seconds after the impact, (time after it (s), fastest
+    centre and fastest vertex (m/s) of the blobs more than two diameters from the impact point). The impact is
+    the first step the dropped blob's centre comes within 2.2 radii of another's."""
+    from ..scene.schema import parse_scene
+    from ..sim.model import build
+    from ..sim.packing import centres
+    from .bench import RADIUS, VERTICES, scene_text
+    pile = scene_text(blobs, "piled", settings)
+    model, state = build(parse_scene(pile, "pile"))
+    start = centres(state.pos, model.offsets)
+    top = len(np.unique(np.round(start[:, 1], 6))) * 2 * RADIUS + drop  # rows at 2 R each, then the drop
+    x = float(start[:, 0].max()) - 0.5 * RADIUS
+    scene = parse_scene(pile + DROPPED_ON_A_SHELF.format(x=x, y=top + RADIUS + 0.01, radius=RADIUS,
+                                                         vertices=VERTICES, shelf=top - 0.05, width=4 * RADIUS,
+                                                         at=at, gone=at + 0.05), "impact")
+    model, state, params, per_second = _run(scene, at)
+    from ..sim.pipeline import advance
+    sizes = np.diff(model.offsets)[:, None]
+    rows, hit = [], None
+    for k in range(4 * per_second):
+        advance(state, model, params, 1)
+        centre = centres(state.pos, model.offsets)
+        if hit is None and np.hypot(*(centre[:-1] - centre[-1]).T).min() < 2.2 * RADIUS:
+            hit = (k, centre[-1].copy())
+        if hit is not None and (k - hit[0]) % (per_second // 4) == 0:
+            far = np.hypot(*(centre[:-1] - hit[1]).T) > 4 * RADIUS
+            speed = np.hypot(*(np.add.reduceat(state.vel, model.offsets[:-1]) / sizes)[:-1].T)
+            vertex = np.hypot(*state.vel.T)
+            far_vertex = np.repeat(np.append(far, False), np.diff(model.offsets))
+            rows.append(((k - hit[0]) * params.dt, float(speed[far].max()), float(vertex[far_vertex].max())))
+            if len(rows) == 9:
+                break
+    return rows
+
+
 def sleep_setting(scene, sleep: bool):
     return replace(scene, settings=replace(scene.settings, sleep=sleep))
 
@@ -140,7 +196,17 @@ def main(argv=None) -> int:
     ap.add_argument("--layout", nargs="+", choices=[*LAYOUTS, "all"], metavar="NAME",
                     help=f"instead: the fastest centre and vertex (sleeping off) in the last second of each of these "
                          f"piles, by its own time ({', '.join(LAYOUTS)}, or all)")
+    ap.add_argument("--impact", action="store_true",
+                    help="instead: the pile of --blobs at rest, one blob dropped onto its end from about 3 m at 12 s; "
+                         "the fastest centre and vertex of the blobs more than two diameters from the impact, every "
+                         "quarter second for two seconds")
     args = ap.parse_args(argv)
+    if args.impact:
+        print(f"pile of {args.blobs} blobs at rest, a blob dropped onto its end from about 3 m: blobs more than two "
+              "diameters from the impact, fastest centre / vertex (mm/s)")
+        for after, centre, vertex in impact(args.blobs):
+            print(f"  {after:.2f} s after the impact: {1e3 * centre:.2f} / {1e3 * vertex:.2f}")
+        return 0
     if args.layout:
         for name in LAYOUTS if "all" in args.layout else args.layout:
             text, seconds = LAYOUTS[name]
