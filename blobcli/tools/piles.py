@@ -152,6 +152,7 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
     from ..scene.schema import parse_scene
     from ..sim.model import build
     from ..sim.packing import centres
+    from ..sim.pipeline import advance
     from .bench import RADIUS, VERTICES, scene_text
     pile = scene_text(blobs, "piled", settings)
     model, state = build(parse_scene(pile, "pile"))
@@ -162,8 +163,6 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
                                                          vertices=VERTICES, shelf=top - 0.05, width=4 * RADIUS,
                                                          at=at, gone=at + 0.05), "impact")
     model, state, params, per_second = _run(scene, at)
-    from ..sim.pipeline import advance
-    sizes = np.diff(model.offsets)[:, None]
     rows, hit = [], None
     for k in range(4 * per_second):
         advance(state, model, params, 1)
@@ -172,7 +171,7 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
             hit = (k, centre[-1].copy())
         if hit is not None and (k - hit[0]) % (per_second // 4) == 0:
             far = np.hypot(*(centre[:-1] - hit[1]).T) > 4 * RADIUS
-            speed = np.hypot(*(np.add.reduceat(state.vel, model.offsets[:-1]) / sizes)[:-1].T)
+            speed = np.hypot(*centres(state.vel, model.offsets)[:-1].T)  # each blob's mean vertex velocity
             vertex = np.hypot(*state.vel.T)
             far_vertex = np.repeat(np.append(far, False), np.diff(model.offsets))
             rows.append(((k - hit[0]) * params.dt, float(speed[far].max()), float(vertex[far_vertex].max())))
