@@ -109,7 +109,7 @@ def test_a_pile_of_60_is_at_rest_14_s_after_the_drop_without_sleeping():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("layout", ["offset-91", "tilted-48", "plane-300"])
+@pytest.mark.parametrize("layout", ["offset-91", "tilted-48", "tilted-60", "plane-300"])
 def test_piles_unlike_the_benchs_own_come_to_rest(layout):
     """Piles of tools/piles.LAYOUTS (segment and plane floors, a floor tilted 4°, 24-48 vertices, 48-300 blobs),
     sleeping off, over the last second before their time (about 12 s after their last blob landed). Contacts
