@@ -118,7 +118,7 @@ def test_piles_unlike_the_benchs_own_come_to_rest(layout):
     from blobcli.tools.piles import LAYOUTS, fastest
     text, seconds = LAYOUTS[layout]
     model, state, params = run(text(), seconds - 1.0)
-    centre, vertex = fastest(state, model, params, int(round(1.0 / params.dt)))
+    centre, vertex, _ = fastest(state, model, params, int(round(1.0 / params.dt)))
     assert centre < LAYOUT_REST_CENTRE and vertex < LAYOUT_REST_VERTEX, (centre, vertex)
 
 
