@@ -50,8 +50,8 @@ def last_second(scene, seconds: float) -> dict:
 def fastest(state, model, params, steps: int) -> tuple[float, float, float]:
     """Advance `steps` steps one at a time; the fastest blob centre and the fastest vertex seen (m/s), and the
     fastest vertex as a recording of every step shows it: the most any vertex moved in one step, over dt (m/s).
-    The last can be far below the second: a vertex that a contact and its ring's constraints push to and fro
-    within a step ends each step where it began, with the velocity of its last substep."""
+    The last can be far below the second: a contact vertex can end every step where it began and still keep a
+    velocity along its push normal (random-90's, docs/physics.md)."""
     from ..sim.packing import centres
     from ..sim.pipeline import advance
     centre = vertex = moved = 0.0
