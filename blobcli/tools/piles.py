@@ -2,12 +2,13 @@
 
 Prints, for a pile of blobs dropped into a box (bench.scene_text, "piled") and for the shipped
 scenes/stack.toml (or, with `--layout NAME ...`, for piles unlike the bench's own: LAYOUTS): the
-fastest blob centre and the fastest vertex over the last second before
-`--seconds` with sleeping off, and with sleeping on (the default) the share of blobs asleep and
-the wall time of that last second against the same second awake; with `--each-second-from S`,
-the pile's fastest centre and vertex (sleeping off) in every second from S to `--seconds`; with
-`--impact`, how a blob dropped onto the pile's end moves the blobs far from it. Figures, not tests:
-the tests (tests/test_sleep.py) hold smaller cases to tolerances.
+fastest blob centre and the fastest vertex over the last second before `--seconds` with sleeping
+off, and with sleeping on (the default) the share of blobs asleep and the wall time of that last
+second against the same second awake; with `--each-second-from S`, the pile's fastest centre and
+vertex (sleeping off) in every second from S to `--seconds` (a layout's lines also give the fastest
+vertex by its motion over a step: `fastest`); with `--impact`, how a blob dropped onto the pile's
+end moves the blobs far from it. Figures, not tests: the tests (tests/test_sleep.py) hold smaller
+cases to tolerances.
 """
 
 from __future__ import annotations
@@ -222,13 +223,13 @@ def main(argv=None) -> int:
                 print(f"{name}, second {second:g}-{second + 1:g}: fastest centre {1e3 * centre:.2f} mm/s, "
                       f"fastest vertex {1e3 * vertex:.2f} mm/s (moved over a step: {1e3 * moved:.2f} mm/s)")
         return 0
-    args.seconds = args.seconds or 14.0
+    seconds = args.seconds or 14.0
     cases = [(f"pile of {args.blobs} blobs", parse_scene(scene_text(args.blobs, "piled"), "pile")),
              ("scenes/stack.toml", load_scene(ROOT / "scenes" / "stack.toml"))]
     for name, scene in cases:
-        awake = last_second(sleep_setting(scene, False), args.seconds)
-        asleep = last_second(sleep_setting(scene, True), args.seconds)
-        print(f"{name}, second {args.seconds - 1:g}-{args.seconds:g} after the drop:")
+        awake = last_second(sleep_setting(scene, False), seconds)
+        asleep = last_second(sleep_setting(scene, True), seconds)
+        print(f"{name}, second {seconds - 1:g}-{seconds:g} after the drop:")
         print(f"  sleep = false: fastest centre {1e3 * awake['centre_m_s']:.2f} mm/s, fastest vertex "
               f"{1e3 * awake['vertex_m_s']:.2f} mm/s; wall {1e3 * awake['wall_s']:.1f} ms")
         print(f"  sleep = true:  {100 * asleep['asleep']:.0f}% of blobs asleep; wall {1e3 * asleep['wall_s']:.1f} ms, "
@@ -236,7 +237,7 @@ def main(argv=None) -> int:
     if args.each_second_from is not None:
         print(f"pile of {args.blobs} blobs, sleep = false, each second (fastest centre / vertex, mm/s):")
         for second, centre, vertex, _ in each_second(sleep_setting(cases[0][1], False), args.each_second_from,
-                                                     int(args.seconds)):
+                                                     int(seconds)):
             print(f"  {second}-{second + 1} s: {1e3 * centre:.2f} / {1e3 * vertex:.1f}")
     return 0
 
