@@ -176,3 +176,21 @@ def test_every_benchmark_data_file_says_where_when_and_how():
         assert isinstance(data.get("command"), str) and data["command"], f"{name}: no command"
         for row in data.get("rows", []) if "peer" in data else []:
             assert {"blobs", "layout", "vertices", "ms_per_step", "ns_per_vertex_substep"} <= set(row), name
+
+
+def test_ab_step_times_a_periodic_scene_compressed_as_jam_compresses_it(tmp_path):
+    """`--scene FILE --phi PHI`: a scene of one's own, its packing compressed to PHI first (this tree against a
+    copy of itself: the same bits); `--phi` without a periodic scene is refused in one line."""
+    other = tmp_path / "other"
+    shutil.copytree(Path(blobcli.__file__).parent, other / "blobcli", ignore=shutil.ignore_patterns("__pycache__"))
+    scene = tmp_path / "packing.toml"
+    scene.write_text('[scene]\ngravity = [0.0, 0.0]\nperiodic = [1.9286, 1.9286]\ndrag = 1.0\n[[blob]]\nradius = 0.14\n'
+                     'vertices = 32\ncount = 16\n[[blob]]\nradius = 0.1\nvertices = 32\ncount = 16\n')
+    done = _ab_step(other, os.environ, "--scene", str(scene), "--phi", "0.6", "--settle", "2", "--steps", "3",
+                    "--rounds", "1")
+    assert done.returncode == 0, done.stderr
+    assert f"{scene} compressed to φ = 0.6, settled 2 steps" in done.stdout
+    assert "same bits after 3 steps: True" in done.stdout
+    refused = _ab_step(other, os.environ, "--phi", "0.6")
+    assert refused.returncode == 2 and refused.stderr.splitlines() == [
+        "ab_step: --phi compresses a periodic scene's packing: give one with --scene"]

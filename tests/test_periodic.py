@@ -268,6 +268,26 @@ def test_a_head_on_collision_across_the_edge_records_its_impulse_as_stress(tmp_p
     assert np.allclose(fraction, fraction[0], rtol=1e-3)  # (pressed, the blobs lose a little area)
 
 
+def test_the_packing_records_are_the_last_steps_of_a_call_however_many_steps_it_runs():
+    """Only a call's last step keeps the packing records (core/step.c): the pair of the test above, mid-collision
+    after 10 steps, records the same bits whether the 10 steps ran in one call or in 9 and 1: neither nothing
+    (records skipped) nor the sum over the call's steps."""
+    from blobcli.sim.jamming import copy_state
+    text = PAIR.format(box="periodic = [4.0, 3.0]", xa=1.4, xb=-1.4)
+    sc = parse_scene(text)
+    model, state = build(sc)
+    params = build_params(sc)
+    split = copy_state(state)
+    advance(state, model, params, 10)
+    advance(split, model, params, 9)
+    advance(split, model, params, 1)
+    assert np.array_equal(state.pos, split.pos)
+    virial, touching, force, count = state.packing
+    assert count[0] == 1 and np.abs(virial).max() > 0.0
+    for ours, theirs in zip(state.packing, split.packing):
+        assert np.array_equal(ours, theirs)
+
+
 def momentum_of(model, state, b):
     o, e = model.offsets[b], model.offsets[b + 1]
     return (state.vel[o:e] / model.inv_mass[o:e, None]).sum(axis=0)

@@ -330,7 +330,7 @@ static void stick_to_blobs(const bcContext *ctx, double h) {
             pos[n + f0] += (1.0 - t) * w0 * dy;
             pos[f1] += t * w1 * dx;
             pos[n + f1] += t * w1 * dy;
-            if (box.lx > 0.0) { /* impulses λ / h: -n on A at p, +n on B at q (the stress, packing.py) */
+            if (ctx->records) { /* impulses λ / h: -n on A at p, +n on B at q (the stress, packing.py) */
                 const double *center = s->center;
                 bc_add_virial(s->virial, A, pos[p] - center[2 * A], pos[n + p] - center[2 * A + 1], -dx / h, -dy / h);
                 bc_add_virial(s->virial, B, qx - center[2 * B], qy - center[2 * B + 1], dx / h, dy / h);

@@ -158,6 +158,8 @@ typedef struct bcContext {
     bcState *s;
     const bcSettings *c;
     bcScratch *w;
+    int64_t records; /* 0/1: this step keeps the packing records (a periodic box's virial, touching pairs and their
+                      * forces: packing_records.h), which only a call's last step needs (bc_advance) */
 } bcContext;
 
 bcScratch *bc_scratch_new(const bcModel *m);

@@ -333,7 +333,7 @@ static void apply_push(const Contacts *cs, int64_t p, int64_t c, int64_t e0, int
     const int64_t n = cs->n;
     double *pos = cs->pos;
     double dx = scale * push[0], dy = scale * push[1], wp = push[2], we = push[3], t = push[4];
-    if (cs->box.lx > 0.0) {
+    if (cs->records) {
         const double *center = cs->center;
         double qx = (1.0 - t) * pos[e0] + t * pos[e1], qy = (1.0 - t) * pos[n + e0] + t * pos[n + e1];
         bc_add_virial(cs->virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1],

@@ -154,7 +154,7 @@ void bc_blob_contact_velocities(const bcContext *ctx, double h) {
             vel[n + e0] -= (1.0 - t) * we * jy;
             vel[e1] -= t * we * jx;
             vel[n + e1] -= t * we * jy;
-            if (cs.box.lx > 0.0) { /* the virial: J on p's blob at p, -m_e w_e J on the other's at q; the pair's J */
+            if (cs.records) { /* the virial: J on p's blob at p, -m_e w_e J on the other's at q; the pair's J */
                 int64_t a = cs.blob_of[p], b = cs.blob_of[e0];
                 bc_add_virial(cs.virial, a, pos[p] - center[2 * a], pos[n + p] - center[2 * a + 1], jx, jy);
                 double qx = (1.0 - t) * pos[e0] + t * pos[e1], qy = (1.0 - t) * pos[n + e0] + t * pos[n + e1];

@@ -35,8 +35,9 @@ typedef struct Contacts {
     int64_t *stick_edge;
     double *stick_t;
     bcBox box;
-    double *virial;       /* (B, 4), NULL in an open world (read only where box.lx > 0) */
-    const bcScratch *w;   /* the pairs and their impulses (packing_records.h), in a periodic box */
+    bool records;         /* the step keeps the packing records (a periodic box's: bcContext.records) ... */
+    double *virial;       /* ... the blobs' virial, (B, 4), NULL in an open world ... */
+    const bcScratch *w;   /* ... and the pairs and their impulses (packing_records.h) */
     double *friction_sum; /* (2, CONTACTS_PER_VERTEX, N): K, each contact's tangential correction this substep */
     double h;
 } Contacts;
@@ -50,7 +51,7 @@ static inline Contacts contacts_of(const bcContext *ctx, double h) {
                       .material = m->material, .c_edge = s->c_edge, .c_hit = s->c_hit, .c_normal = s->c_normal,
                       .depth = s->blob_contact_depth, .center = s->center, .radius = s->radius, .up_x = c->up_x,
                       .up_y = c->up_y, .stick_edge = s->stick_edge, .stick_t = s->stick_t,
-                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .virial = s->virial, .w = ctx->w,
+                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .records = ctx->records != 0, .virial = s->virial, .w = ctx->w,
                       .friction_sum = ctx->w->friction_sum, .h = h};
 }
 

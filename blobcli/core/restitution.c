@@ -287,7 +287,7 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
         const int64_t blob[2] = {a, b};
         /* the virial (packing): ∓μ Δu n̄ on a and b, at the midpoint between them, and -μ Δu n̄ into the pair's
          * record (an open world keeps none) */
-        if (box.lx > 0.0 && s->virial != NULL) {
+        if (ctx->records && s->virial != NULL) {
             const double side[2] = {0.5, -0.5};
             for (int r = 0; r < 2; r++) {
                 bc_add_virial(s->virial, blob[r], side[r] * length * nx, side[r] * length * ny,

@@ -152,7 +152,10 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
         double rest_speed = bc_rest_speed(g, h); /* slower impacts never bounce (restitution.c) */
         s->substeps_taken[0] = s->substeps_taken[0] > substeps ? s->substeps_taken[0] : substeps;
         s->substeps_taken[1] += substeps > c->substeps;
-        if (periodic) /* the step's contact impulses, for the stress (packing.py) */
+        /* the packing records (the step's contact impulses as the stress, the pairs touching at its end and their
+         * forces: packing.py) are what the caller reads after the call, so only its last step keeps them */
+        context.records = periodic && n == steps - 1;
+        if (ctx->records)
             for (int64_t k = 0; k < 4 * m->blob_count; k++) s->virial[k] = 0.0;
         for (int64_t sub = 0; sub < substeps; sub++) {
             if (c->moving) { /* colliders to where they are at the substep's end; those near sleeping blobs wake them */
@@ -235,7 +238,7 @@ bcStop bc_advance(const bcContext *ctx_in, int64_t steps, double runaway, double
                 t = lap(clock, LAP_BLOB_RESTITUTION, t);
             }
         }
-        if (periodic) bc_keep_touching(ctx, h); /* the pairs in contact at the step's end, for the contact numbers */
+        if (ctx->records) bc_keep_touching(ctx, h); /* the pairs in contact at the step's end, for the contact numbers */
         if (c->sleep) { /* islands of blobs at rest fall asleep, islands with a mover wake */
             awake_blobs = bc_update_sleep(ctx);
             t = lap(clock, LAP_SLEEP, t);

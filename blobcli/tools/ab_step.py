@@ -17,6 +17,12 @@ without a compiled core) needs numba in this environment, which blobsim does not
 numba`; without it ab_step says so in one line and stops.
 
     git worktree add /tmp/before HEAD~1 && python -m blobcli.tools.ab_step /tmp/before
+
+`--scene FILE` times a scene of one's own instead of the bench's, and `--phi PHI` (a periodic scene) first
+compresses its packing as `blobsim jam` does, by Δφ = 0.04 and RELAX_BLOCK steps of its drag at a time, to
+packing fraction PHI: the jam's step on a dense packing, e.g.
+
+    python -m blobcli.tools.ab_step /tmp/before --scene scenes/jamming/bidisperse.toml --phi 0.84 --steps 100
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 
 def _arrays(state):
@@ -73,15 +81,27 @@ def _ready_core(copy: Path, work: Path) -> str | None:
     return None
 
 
-def _runner(package: str, blobs: int, layout: str, lines: str, settle: int, steps: int):
+def _runner(package: str, blobs: int, layout: str, lines: str, settle: int, steps: int, scene_file: Path | None,
+            phi: float | None):
     """A function that restores the settled state, times `steps` steps and returns (seconds, positions)."""
     schema = importlib.import_module(f"{package}.scene.schema")
     bench = importlib.import_module(f"{package}.tools.bench")
     model_module = importlib.import_module(f"{package}.sim.model")
     pipeline = importlib.import_module(f"{package}.sim.pipeline")
-    scene = schema.parse_scene(bench.scene_text(blobs, layout, lines), f"ab-{layout}-{blobs}")
+    if scene_file is None:
+        scene = schema.parse_scene(bench.scene_text(blobs, layout, lines), f"ab-{layout}-{blobs}")
+    else:
+        scene = schema.load_scene(scene_file)
     model, state = model_module.build(scene)
     params = model_module.build_params(scene)
+    if phi is not None:  # compressed as `blobsim jam` compresses, each step brought toward rest by the drag
+        jamming = importlib.import_module(f"{package}.sim.jamming")
+        measure = importlib.import_module(f"{package}.sim.measure")
+        packing = importlib.import_module(f"{package}.sim.packing")
+        now = packing.packing_fraction(measure.blob_measures(state, model)[0], params.box)
+        for target in [*np.arange(now + 0.04, phi, 0.04), phi]:
+            params = jamming.compress(state, model, params, float(target))
+            pipeline.advance(state, model, params, jamming.RELAX_BLOCK)
     settings = pipeline.settings(model, params)
     pipeline.advance(state, model, params, settle, step_settings=settings)
     settled = [a.copy() for a in _arrays(state)]
@@ -104,7 +124,15 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=10, help="steps per timed round")
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--scene-lines", default="", help=r"more [scene] lines, e.g. 'iterations = 10\nsubsteps = 1'")
+    ap.add_argument("--scene", type=Path, help="a scene file to time instead of the bench's (--blobs, --layout and "
+                    "--scene-lines are then not used)")
+    ap.add_argument("--phi", type=float, help="a periodic scene's packing compressed to this packing fraction first")
     args = ap.parse_args(argv)
+    if args.phi is not None:
+        from ..scene.schema import load_scene
+        if args.scene is None or load_scene(args.scene).settings.periodic is None:
+            print("ab_step: --phi compresses a periodic scene's packing: give one with --scene", file=sys.stderr)
+            return 2
     source = args.other / "blobcli"
     if not (source / "sim" / "pipeline.py").is_file():
         print(f"ab_step: {source}: not a blobcli package", file=sys.stderr)
@@ -121,14 +149,16 @@ def main(argv=None) -> int:
             print(f"ab_step: {source / 'core'}: {problem}", file=sys.stderr)
             return 2
         sys.path.insert(0, tmp)
-        runs = {name: _runner(package, args.blobs, args.layout, lines, args.settle, args.steps)
+        runs = {name: _runner(package, args.blobs, args.layout, lines, args.settle, args.steps, args.scene, args.phi)
                 for name, package in (("this", "blobcli"), ("other", "blobcli_other"))}
         (_, here), (_, there) = runs["this"](), runs["other"]()
         times = {"this": [], "other": []}
         for _ in range(args.rounds):
             for name, run in runs.items():
                 times[name].append(run()[0] / args.steps)
-    print(f"{args.blobs} blobs {args.layout}, settled {args.settle} steps, {args.rounds} rounds of {args.steps} steps")
+    timed = f"{args.blobs} blobs {args.layout}" if args.scene is None else \
+        f"{args.scene}" + (f" compressed to φ = {args.phi}" if args.phi is not None else "")
+    print(f"{timed}, settled {args.settle} steps, {args.rounds} rounds of {args.steps} steps")
     print(f"same bits after {args.steps} steps: {here.tobytes() == there.tobytes()}")
     for name, t in times.items():
         print(f"{name:>5s}: {1e3 * statistics.median(t):.3f} ms per step (median), {1e3 * min(t):.3f} (min)")
