@@ -51,8 +51,8 @@ static inline Contacts contacts_of(const bcContext *ctx, double h) {
                       .material = m->material, .c_edge = s->c_edge, .c_hit = s->c_hit, .c_normal = s->c_normal,
                       .depth = s->blob_contact_depth, .center = s->center, .radius = s->radius, .up_x = c->up_x,
                       .up_y = c->up_y, .stick_edge = s->stick_edge, .stick_t = s->stick_t,
-                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .records = ctx->records != 0, .virial = s->virial, .w = ctx->w,
-                      .friction_sum = ctx->w->friction_sum, .h = h};
+                      .box = bc_box(c->box_x, c->box_y, c->box_tilt), .records = ctx->records != 0,
+                      .virial = s->virial, .w = ctx->w, .friction_sum = ctx->w->friction_sum, .h = h};
 }
 
 static inline double clamp01(double t) { return bc_min(bc_max(t, 0.0), 1.0); }
