@@ -286,8 +286,8 @@ void bc_blob_restitution(const bcContext *ctx, double rest_speed) {
         if (du == 0.0) continue;
         const int64_t blob[2] = {a, b};
         /* the virial (packing): ∓μ Δu n̄ on a and b, at the midpoint between them, and -μ Δu n̄ into the pair's
-         * record (an open world keeps none) */
-        if (ctx->records && s->virial != NULL) {
+         * record, in the step that keeps the packing records (bcContext.records; an open world keeps none) */
+        if (ctx->records) {
             const double side[2] = {0.5, -0.5};
             for (int r = 0; r < 2; r++) {
                 bc_add_virial(s->virial, blob[r], side[r] * length * nx, side[r] * length * ny,
