@@ -28,6 +28,7 @@
 #include "periodic.h"
 #include "ring.h"
 #include "scratch.h"
+#include "vector_loops.h"
 
 #define CONTACTS BC_CONTACTS_PER_VERTEX
 static const double BROAD_MARGIN = 0.25; /* × the larger radius: the broad phase's margin (collide.py) */
@@ -164,54 +165,80 @@ static void renew(const bcContext *ctx, const uint8_t *outgrown, double reach_ti
     });
 }
 
+/* nearest_edge's running readings: how many edges the ray from p crosses, and the least bits of a squared distance
+ * (over all edges, and over the opposing ones) with the edge that has them */
+typedef struct {
+    int64_t crossings, least, least_opposing, m_least, m_opposing;
+} Nearest;
+
+/* The first of count values equal to v (one is) */
+static inline int64_t first_equal(const int64_t *values, int64_t count, int64_t v) {
+    int64_t k = 0;
+    while (values[k] != v && k < count - 1) k++;
+    return k;
+}
+
+/* Edges first .. first + count - 1 (count <= EDGE_CHUNK) of B (rows ax, ay, ex, ey, inv_len2) taken into `near` for
+ * p = (x, y), in order: an edge becomes the nearest when its bits are below the least so far (so the first of
+ * equal ones stays). The ray from p toward +x crosses edge m when its ends lie on both sides of y and
+ * (r × e) e_y < 0, r = p - a_m (crossing number, without dividing); its nearest point is a_m + t e,
+ * t = clamp(r · e / |e|², 0, 1), at d² = |t e - r|²; it opposes p's normal v when its outward normal (B's winding
+ * `orient`) does. The readings of the chunk are branch-free, on vector registers; then its least bits, and the
+ * first edge that has them. */
+#define EDGE_CHUNK 32
+BC_VECTOR_LOOPS static void take_edges(Nearest *near, const double *ax, const double *ay, const double *ex,
+                                       const double *ey, const double *inv_len2, int64_t first, int64_t count, double x,
+                                       double y, double orient, double vnx, double vny) {
+    int64_t bits[EDGE_CHUNK], opposing[EDGE_CHUNK]; /* opposing: the bits of an opposing edge, NO_EDGE for others */
+    int64_t crossings = 0;
+    for (int64_t k = 0; k < count; k++) {
+        int64_t m = first + k;
+        double rx = x - ax[m], ry = y - ay[m];
+        crossings += (ay[m] > y) != (ay[m] + ey[m] > y) && (rx * ey[m] - ry * ex[m]) * ey[m] < 0.0 ? 1 : 0;
+        double t = bc_min(bc_max((rx * ex[m] + ry * ey[m]) * inv_len2[m], 0.0), 1.0);
+        double dx = t * ex[m] - rx, dy = t * ey[m] - ry;
+        double d2 = dx * dx + dy * dy;
+        memcpy(bits + k, &d2, sizeof d2);
+        opposing[k] = orient * (ey[m] * vnx - ex[m] * vny) < 0.0 ? bits[k] : NO_EDGE;
+    }
+    int64_t least = NO_EDGE, least_opposing = NO_EDGE;
+    for (int64_t k = 0; k < count; k++) {
+        least = bits[k] < least ? bits[k] : least;
+        least_opposing = opposing[k] < least_opposing ? opposing[k] : least_opposing;
+    }
+    near->crossings += crossings;
+    if (least < near->least) {
+        near->least = least;
+        near->m_least = first + first_equal(bits, count, least);
+    }
+    if (least_opposing < near->least_opposing) {
+        near->least_opposing = least_opposing;
+        near->m_opposing = first + first_equal(opposing, count, least_opposing);
+    }
+}
+
 /* The edge of blob B nearest p = (x, y) (edge table rows ax, ay, ex, ey, inv_len2 from B's first vertex on, n of
  * them), as its index in B's ring, or -1 when there is none; *inside: whether p is inside B; *d2: the squared
  * distance to it. Inside B, the nearest among the edges whose outward normal (B's winding `orient`) opposes p's
  * own normal v, if any does. Ties: the first edge with the least distance in ring order from the closing edge,
  * n - 1, 0, 1, ..., n - 2.
  *
- * Per edge m: the ray from p toward +x crosses it when its ends lie on both sides of y and
- * (r × e) e_y < 0, r = p - a_m (crossing number, without dividing); its nearest point is a_m + t e,
- * t = clamp(r · e / |e|², 0, 1), at d² = |t e - r|². d² >= 0, and the bit patterns of non-negative doubles order
- * as integers do: the least distance is an integer minimum over the bits, so equal distances are equal minima,
- * and the first edge in that order to reach the minimum is the one kept (the same edge as a search for the
- * minimum's bits from n - 1 on). */
+ * d² >= 0, and the bit patterns of non-negative doubles order as integers do: the least distance is an integer
+ * minimum over the bits, so equal distances are equal minima, and the first edge in that order to reach the
+ * minimum is the one kept (the same edge as a search for the minimum's bits from n - 1 on). */
 static inline int64_t nearest_edge(const double *ax, const double *ay, const double *ex, const double *ey,
                                    const double *inv_len2, int64_t n, double x, double y, double orient, double vnx,
                                    double vny, bool *inside, double *d2_nearest) {
-    int64_t crossings = 0;
-    int64_t least = NO_EDGE, least_opposing = NO_EDGE; /* the least bits, over all edges and over opposing ones */
-    int64_t m_least = -1, m_opposing = -1;
-    double d2_least = 0.0, d2_opposing = 0.0;
-    for (int64_t j = 0; j < n; j++) {
-        int64_t m = j == 0 ? n - 1 : j - 1;
-        double rx = x - ax[m], ry = y - ay[m];
-        crossings += ((ay[m] > y) != (ay[m] + ey[m] > y)) & ((rx * ey[m] - ry * ex[m]) * ey[m] < 0.0);
-        double t = bc_min(bc_max((rx * ex[m] + ry * ey[m]) * inv_len2[m], 0.0), 1.0);
-        double dx = t * ex[m] - rx, dy = t * ey[m] - ry;
-        double d2 = dx * dx + dy * dy;
-        int64_t bits;
-        memcpy(&bits, &d2, sizeof bits);
-        bool opposes = orient * (ey[m] * vnx - ex[m] * vny) < 0.0;
-        if (bits < least) {
-            least = bits;
-            m_least = m;
-            d2_least = d2;
-        }
-        if (opposes && bits < least_opposing) {
-            least_opposing = bits;
-            m_opposing = m;
-            d2_opposing = d2;
-        }
-    }
-    if (least == NO_EDGE) return -1;
-    *inside = crossings % 2 == 1;
-    if (*inside && least_opposing != NO_EDGE) {
-        *d2_nearest = d2_opposing;
-        return m_opposing;
-    }
-    *d2_nearest = d2_least;
-    return m_least;
+    Nearest near = {0, NO_EDGE, NO_EDGE, -1, -1};
+    if (n > 0) take_edges(&near, ax, ay, ex, ey, inv_len2, n - 1, 1, x, y, orient, vnx, vny);
+    for (int64_t first = 0; first < n - 1; first += EDGE_CHUNK)
+        take_edges(&near, ax, ay, ex, ey, inv_len2, first, bc_imin(n - 1 - first, EDGE_CHUNK), x, y, orient, vnx,
+                   vny);
+    if (near.least == NO_EDGE) return -1;
+    *inside = near.crossings % 2 == 1;
+    bool opposing = *inside && near.least_opposing != NO_EDGE;
+    memcpy(d2_nearest, opposing ? &near.least_opposing : &near.least, sizeof *d2_nearest);
+    return opposing ? near.m_opposing : near.m_least;
 }
 
 /* For every vertex of a stale blob A: its contacts (the edge), at most CONTACTS_PER_VERTEX, each with another

@@ -93,8 +93,8 @@ bcScratch *bc_scratch_new(const bcModel *m) {
         return NULL;
     }
     /* perimeter.c, area.c */
-    w->perimeter_unit = calloc((size_t)(2 * m->vertex_count + 1), sizeof(double));
-    if (!w->perimeter_unit) {
+    w->perimeter_scratch = calloc((size_t)(3 * m->vertex_count + 1), sizeof(double));
+    if (!w->perimeter_scratch) {
         bc_scratch_free(w);
         return NULL;
     }
@@ -187,7 +187,7 @@ void bc_scratch_free(bcScratch *w) {
     free(w->self_sums);
     free(w->self_kept);
     /* perimeter.c, area.c */
-    free(w->perimeter_unit);
+    free(w->perimeter_scratch);
     /* integrate.c, restitution.c, sleep.c */
     free(w->stack_height);
     free(w->stack_across);

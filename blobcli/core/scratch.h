@@ -71,8 +71,8 @@ struct bcScratch {
     double *self_sums;      /* (N, 9): per zone root, the zone's sums, rows o .. of the table */
     double *self_kept;      /* (2 N): a ring before its area is projected again, (2, n) from 2 o on */
     /* perimeter.c, area.c */
-    double *perimeter_unit; /* (2, N): perimeter.c's unit edge vectors t_i of a ring's total length, ring b's in its
-                             * own columns o .. e (parallel rings never share a slot) */
+    double *perimeter_scratch; /* (3, N): perimeter.c's per-edge rows (Δλ n, or t_i and |e_i|), ring b's in its own
+                                * columns o .. e (parallel rings never share a slot) */
     /* integrate.c, restitution.c, sleep.c */
     double *stack_height;        /* (B) integrate.c rows_stacked: each blob's centre along up ... */
     double *stack_across;        /* (B) ... and across ... */
