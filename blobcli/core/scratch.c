@@ -92,7 +92,7 @@ bcScratch *bc_scratch_new(const bcModel *m) {
         bc_scratch_free(w);
         return NULL;
     }
-    /* perimeter.c, area.c */
+    /* perimeter.c */
     w->perimeter_scratch = calloc((size_t)(3 * m->vertex_count + 1), sizeof(double));
     if (!w->perimeter_scratch) {
         bc_scratch_free(w);
@@ -186,7 +186,7 @@ void bc_scratch_free(bcScratch *w) {
     free(w->self_zone);
     free(w->self_sums);
     free(w->self_kept);
-    /* perimeter.c, area.c */
+    /* perimeter.c */
     free(w->perimeter_scratch);
     /* integrate.c, restitution.c, sleep.c */
     free(w->stack_height);

@@ -70,7 +70,7 @@ struct bcScratch {
     int64_t *self_zone;     /* (N): each vertex's zone (its root's index in the ring), zone[o ..] */
     double *self_sums;      /* (N, 9): per zone root, the zone's sums, rows o .. of the table */
     double *self_kept;      /* (2 N): a ring before its area is projected again, (2, n) from 2 o on */
-    /* perimeter.c, area.c */
+    /* perimeter.c */
     double *perimeter_scratch; /* (3, N): perimeter.c's per-edge rows (Δλ n, or t_i and |e_i|), ring b's in its own
                                 * columns o .. e (parallel rings never share a slot) */
     /* integrate.c, restitution.c, sleep.c */
