@@ -19,8 +19,8 @@ numba`; without it ab_step says so in one line and stops.
     git worktree add /tmp/before HEAD~1 && python -m blobcli.tools.ab_step /tmp/before
 
 `--scene FILE` times a scene of one's own instead of the bench's, and `--phi PHI` (a periodic scene) first
-compresses its packing as `blobsim jam` does, by Δφ = 0.04 and RELAX_BLOCK steps of its drag at a time, to
-packing fraction PHI: the jam's step on a dense packing, e.g.
+compresses its packing as `blobsim jam` does, by Δφ = jamming.COARSE_STEP and RELAX_BLOCK steps of its drag at
+a time, to packing fraction PHI: the jam's step on a dense packing, e.g.
 
     python -m blobcli.tools.ab_step /tmp/before --scene scenes/jamming/bidisperse.toml --phi 0.84 --steps 100
 """
@@ -99,7 +99,8 @@ def _runner(package: str, blobs: int, layout: str, lines: str, settle: int, step
         measure = importlib.import_module(f"{package}.sim.measure")
         packing = importlib.import_module(f"{package}.sim.packing")
         now = packing.packing_fraction(measure.blob_measures(state, model)[0], params.box)
-        for target in [*np.arange(now + 0.04, phi, 0.04), phi]:
+        step = jamming.COARSE_STEP
+        for target in [*np.arange(now + step, phi, step), phi]:
             params = jamming.compress(state, model, params, float(target))
             pipeline.advance(state, model, params, jamming.RELAX_BLOCK)
     settings = pipeline.settings(model, params)
