@@ -136,6 +136,35 @@ def test_piles_unlike_the_benchs_own_fall_asleep(layout, seconds):
     assert state.awake.sum() <= (1 - PILE_ASLEEP) * model.blob_count
 
 
+def test_piles_perturb_moves_each_blob_rigidly_within_eps_by_its_seed():
+    """`tools/piles --perturb EPS --seed S`: each blob moved as a whole by up to EPS per axis before the drop, the same
+    offsets for the same seed, others for another (the rest of a pile from a grid start is a property of that start
+    only: its columns are mirror images of each other)."""
+    from blobcli.scene.schema import parse_scene
+    from blobcli.tools.piles import LAYOUTS, _run
+    scene = parse_scene(LAYOUTS["tilted-48"][0](), "tilted-48")
+    model, start, _, _ = _run(scene, 0.0)
+    offsets = {}
+    for seed in (1, 1, 2):
+        _, state, _, _ = _run(scene, 0.0, perturb=0.01, seed=seed)
+        moved = state.pos - start.pos
+        per_blob = np.array([moved[o] for o in model.offsets[:-1]])
+        assert np.all(np.abs(per_blob) <= 0.01) and np.abs(per_blob).max() > 0.005
+        assert np.allclose(moved, np.repeat(per_blob, np.diff(model.offsets), axis=0), rtol=0, atol=1e-12)  # rigidly
+        offsets.setdefault(seed, per_blob)
+        assert np.array_equal(per_blob, offsets[seed])
+    assert not np.array_equal(offsets[1], offsets[2])
+
+
+def test_the_smallest_scenes_that_do_not_rest_run():
+    """`tools/piles --smallest`: one blob nudged on a floor, three in a wedge, at a fixed substep count (docs/physics.md,
+    Known limits, measures them for 20 s)."""
+    from blobcli.tools.piles import SMALLEST, smallest
+    for name in SMALLEST:
+        rows = smallest(name, 4, seconds=2)
+        assert [second for second, *_ in rows] == [1] and np.isfinite(rows[0][1:]).all()
+
+
 def test_a_blob_landing_on_a_sleeping_pile_wakes_it():
     text = PILE.format(sleep="true", extra=LATE_BLOB)
     s = scene(text)

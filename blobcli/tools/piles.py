@@ -6,9 +6,10 @@ fastest blob centre and the fastest vertex over the last second before `--second
 off, and with sleeping on (the default) the share of blobs asleep and the wall time of that last
 second against the same second awake; with `--each-second-from S`, the pile's fastest centre and
 vertex (sleeping off) in every second from S to `--seconds` (a layout's lines also give the fastest
-vertex by its motion over a step: `fastest`); with `--impact`, how a blob dropped onto the pile's
-end moves the blobs far from it. Figures, not tests: the tests (tests/test_sleep.py) hold smaller
-cases to tolerances.
+vertex by its motion over a step: `fastest`; with `--perturb EPS`, each blob first moved by up to EPS); with
+`--impact`, how a blob dropped onto the pile's end moves the blobs far from it; with `--smallest`, the smallest
+scenes that do not rest (SMALLEST). Figures, not tests: the tests (tests/test_sleep.py) hold smaller cases to
+tolerances.
 """
 
 from __future__ import annotations
@@ -25,12 +26,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _run(scene, seconds: float):
-    """(model, state after `seconds`, params, steps per second) of `scene`."""
+def _run(scene, seconds: float, perturb: float = 0.0, seed: int = 1):
+    """(model, state after `seconds`, params, steps per second) of `scene`, each blob first moved rigidly by a
+    random offset of up to `perturb` m per axis (uniform, numpy's default_rng(seed), blob by blob)."""
     from ..sim.model import build, build_params
     from ..sim.pipeline import advance
     model, state = build(scene)
     params = build_params(scene)
+    if perturb > 0.0:
+        rng = np.random.default_rng(seed)
+        for o, e in zip(model.offsets[:-1], model.offsets[1:]):
+            state.pos[o:e] += rng.uniform(-perturb, perturb, 2)
     advance(state, model, params, int(round(seconds / params.dt)))
     return model, state, params, int(round(1.0 / params.dt))
 
@@ -65,11 +71,12 @@ def fastest(state, model, params, steps: int) -> tuple[float, float, float]:
     return centre, vertex, moved
 
 
-def each_second(scene, first: int, last: int) -> list[tuple[int, float, float, float]]:
+def each_second(scene, first: int, last: int, perturb: float = 0.0,
+                seed: int = 1) -> list[tuple[int, float, float, float]]:
     """Run `scene` to `last` seconds; for each second from `first` on: (its start, fastest centre, fastest
     vertex, fastest vertex by its motion over a step: `fastest`) in m/s. One second alone can mislead in a pile
-    still settling (a blob that slips)."""
-    model, state, params, per_second = _run(scene, first)
+    still settling (a blob that slips). perturb, seed: see _run."""
+    model, state, params, per_second = _run(scene, first, perturb, seed)
     return [(second, *fastest(state, model, params, per_second)) for second in range(first, last)]
 
 
@@ -186,6 +193,54 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
     return rows
 
 
+# The two smallest scenes that do not come to rest, at a fixed substep count. RESTING: one blob on a plane, nudged
+# at 0.1 mm/s: a blob at rest on a floor should stay there (rolling on a flat floor costs nothing, so the nudge may
+# roll on, decaying). WEDGE: two blobs on a plane 0.3 m apart and a third dropped into the gap 5 cm off its middle;
+# rigid discs so placed rest for any friction above tan(θ/2) = 0.38, θ = 41.8° the contact normals' angle from the
+# vertical, and the blobs' is 0.6 (though three discs that roll without slipping, the lower two on the floor and
+# the top one the other way round, are a gear train that moves at no cost in energy).
+SMALLEST = {
+    "resting": """[scene]
+sleep = false
+substeps = {substeps}
+max_substeps = {substeps}
+[[blob]]
+name = "resting"
+center = [0.0, 0.46]
+radius = 0.45
+vertices = 24
+velocity = [1e-4, 0.0]
+""",
+    "wedge": """[scene]
+sleep = false
+substeps = {substeps}
+max_substeps = {substeps}
+[[blob]]
+name = "left"
+center = [-0.6, 0.46]
+radius = 0.45
+vertices = 24
+[[blob]]
+name = "right"
+center = [0.6, 0.46]
+radius = 0.45
+vertices = 24
+[[blob]]
+name = "top"
+center = [0.05, 1.4]
+radius = 0.45
+vertices = 24
+"""}
+FLOOR = '[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
+
+
+def smallest(name: str, substeps: int, seconds: int = 20) -> list[tuple[int, float, float, float]]:
+    """SMALLEST[name] at a fixed substep count: each second's fastest centre, vertex and vertex moved (m/s;
+    each_second)"""
+    from ..scene.schema import parse_scene
+    return each_second(parse_scene(SMALLEST[name].format(substeps=substeps) + FLOOR, name), 1, seconds)
+
+
 def sleep_setting(scene, sleep: bool):
     return replace(scene, settings=replace(scene.settings, sleep=sleep))
 
@@ -203,11 +258,25 @@ def main(argv=None) -> int:
     ap.add_argument("--layout", nargs="+", choices=[*LAYOUTS, "all"], metavar="NAME",
                     help=f"instead: the fastest centre and vertex (sleeping off) in the last second of each of these "
                          f"piles, by its own time ({', '.join(LAYOUTS)}, or all)")
+    ap.add_argument("--perturb", type=float, default=0.0, metavar="EPS",
+                    help="with --layout: move each blob by a random offset of up to EPS m per axis before the drop "
+                         "(a grid's columns are otherwise mirror images of each other; default 0)")
+    ap.add_argument("--seed", type=int, default=1, help="with --perturb: the offsets' random seed (default 1)")
     ap.add_argument("--impact", action="store_true",
                     help="instead: the pile of --blobs at rest, one blob dropped onto its end from about 3 m at 12 s; "
                          "the fastest centre and vertex of the blobs more than two diameters from the impact, every "
                          "quarter second for two seconds")
+    ap.add_argument("--smallest", action="store_true",
+                    help="instead: the smallest scenes that do not rest (SMALLEST: one blob on a floor, three in a "
+                         "wedge) at 2, 4 and 16 substeps, the fastest centre and vertex each second for 20 s")
     args = ap.parse_args(argv)
+    if args.smallest:
+        for name in SMALLEST:
+            print(f"{name}: fastest centre / vertex each second from 1 s (mm/s)")
+            for substeps in (2, 4, 16):
+                print(f"  {substeps:2d} substeps: " + " ".join(f"{1e3 * centre:.2f}/{1e3 * vertex:.2f}"
+                                                              for _, centre, vertex, _ in smallest(name, substeps)))
+        return 0
     if args.impact:
         print(f"pile of {args.blobs} blobs at rest, a blob dropped onto its end from about 3 m: blobs more than two "
               "diameters from the impact, fastest centre / vertex (mm/s)")
@@ -219,7 +288,8 @@ def main(argv=None) -> int:
             text, seconds = LAYOUTS[name]
             seconds = int(args.seconds or seconds)
             first = seconds - 1 if args.each_second_from is None else args.each_second_from
-            for second, centre, vertex, moved in each_second(parse_scene(text(), name), first, seconds):
+            for second, centre, vertex, moved in each_second(parse_scene(text(), name), first, seconds, args.perturb,
+                                                             args.seed):
                 print(f"{name}, second {second:g}-{second + 1:g}: fastest centre {1e3 * centre:.2f} mm/s, "
                       f"fastest vertex {1e3 * vertex:.2f} mm/s (moved over a step: {1e3 * moved:.2f} mm/s)")
         return 0
