@@ -193,17 +193,14 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
     return rows
 
 
-# The two smallest scenes that do not come to rest, at a fixed substep count. RESTING: one blob on a plane, nudged
+# The two smallest scenes that do not come to rest, at a fixed substep count. "resting": one blob on a plane, nudged
 # at 0.1 mm/s: a blob at rest on a floor should stay there (rolling on a flat floor costs nothing, so the nudge may
-# roll on, decaying). WEDGE: two blobs on a plane 0.3 m apart and a third dropped into the gap 5 cm off its middle;
+# roll on, decaying). "wedge": two blobs on a plane 0.3 m apart and a third dropped into the gap 5 cm off its middle;
 # rigid discs so placed rest for any friction above tan(θ/2) = 0.38, θ = 41.8° the contact normals' angle from the
 # vertical, and the blobs' is 0.6 (though three discs that roll without slipping, the lower two on the floor and
 # the top one the other way round, are a gear train that moves at no cost in energy).
 SMALLEST = {
-    "resting": """[scene]
-sleep = false
-substeps = {substeps}
-max_substeps = {substeps}
+    "resting": """
 [[blob]]
 name = "resting"
 center = [0.0, 0.46]
@@ -211,20 +208,14 @@ radius = 0.45
 vertices = 24
 velocity = [1e-4, 0.0]
 """,
-    "wedge": """[scene]
-sleep = false
-substeps = {substeps}
-max_substeps = {substeps}
+    "wedge": """
 [[blob]]
-name = "left"
+name = "below"
 center = [-0.6, 0.46]
 radius = 0.45
 vertices = 24
-[[blob]]
-name = "right"
-center = [0.6, 0.46]
-radius = 0.45
-vertices = 24
+grid = [2, 1]
+spacing = [1.2, 0.0]
 [[blob]]
 name = "top"
 center = [0.05, 1.4]
@@ -238,7 +229,8 @@ def smallest(name: str, substeps: int, seconds: int = 20) -> list[tuple[int, flo
     """SMALLEST[name] at a fixed substep count: each second's fastest centre, vertex and vertex moved (m/s;
     each_second)"""
     from ..scene.schema import parse_scene
-    return each_second(parse_scene(SMALLEST[name].format(substeps=substeps) + FLOOR, name), 1, seconds)
+    head = f"[scene]\nsleep = false\nsubsteps = {substeps}\nmax_substeps = {substeps}\n"
+    return each_second(parse_scene(head + SMALLEST[name] + FLOOR, name), 1, seconds)
 
 
 def sleep_setting(scene, sleep: bool):
