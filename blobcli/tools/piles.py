@@ -80,10 +80,13 @@ def each_second(scene, first: int, last: int, perturb: float = 0.0,
     return [(second, *fastest(state, model, params, per_second)) for second in range(first, last)]
 
 
+FLOOR = '[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'  # the plane y = 0, solid below
+
+
 def _segment_walls(half: float, top: float, floor: str) -> str:
     """A floor (a plane, or a segment from -half to half) at y = 0 and two segment walls up to `top`"""
     if floor == "plane":
-        text = '[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
+        text = FLOOR
     else:
         text = f'[[static]]\nkind = "segment"\na = [{-half}, 0.0]\nb = [{half}, 0.0]\n'
     for x in (-half, half):
@@ -222,7 +225,6 @@ center = [0.05, 1.4]
 radius = 0.45
 vertices = 24
 """}
-FLOOR = '[[static]]\nkind = "plane"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n'
 
 
 def smallest(name: str, substeps: int, seconds: int = 20) -> list[tuple[int, float, float, float]]:
@@ -262,6 +264,10 @@ def main(argv=None) -> int:
                     help="instead: the smallest scenes that do not rest (SMALLEST: one blob on a floor, three in a "
                          "wedge) at 2, 4 and 16 substeps, the fastest centre and vertex each second for 20 s")
     args = ap.parse_args(argv)
+    if (args.perturb != 0.0 or args.seed != 1) and not args.layout:
+        ap.error("--perturb and --seed go with --layout")
+    if args.perturb < 0.0:
+        ap.error(f"--perturb: an offset bound in m, at least 0 (got {args.perturb:g})")
     if args.smallest:
         for name in SMALLEST:
             print(f"{name}: fastest centre / vertex each second from 1 s (mm/s)")
