@@ -92,20 +92,25 @@ NEUTRAL = 1e-3  # |λ - 1| below this: neutral (central differences split a drif
 
 def leading_modes(J: np.ndarray, count: int) -> tuple[int, np.ndarray, np.ndarray]:
     """How many eigenvalues of J are 1 (to NEUTRAL), and of the others the `count` of greatest modulus (largest
-    first) with their eigenvectors (columns)"""
+    first, a complex pair once) with their eigenvectors (columns)"""
     values, vectors = np.linalg.eig(J)
     neutral = np.abs(values - 1.0) < NEUTRAL
-    order = [k for k in np.argsort(-np.abs(values), kind="stable") if not neutral[k]][:count]
+    # (one of each complex pair: its conjugate is the same mode)
+    order = [k for k in np.argsort(-np.abs(values), kind="stable") if not neutral[k] and values[k].imag >= 0.0]
+    order = order[:count]
     return int(neutral.sum()), values[order], vectors[:, order]
 
 
 def blob_shares(model, state, mode: np.ndarray, dt: float) -> tuple[str, list[tuple[float, float, float, float]]]:
-    """What a mode's real part does to each blob: ("v", rows) from its velocity part, or ("x", rows) from its
+    """What a mode does to each blob: ("v", rows) from its velocity part, or ("x", rows) from its
     position part where the velocity part moves the blob by less than 0.1% of that in a step of dt (a state one can
     move to and stay in: λ = 1). A row per blob, (along x, along y, turn, deformed): the best-fit rigid motion
     u_c + ω ẑ × r of the part u (u_c the mean, ω = Σ r × (u - u_c) / Σ |r|²) and the share |u - u_rigid| / |u|
     that is not rigid."""
     n = state.pos.shape[0]
+    # a complex mode's phase is arbitrary: turned so that its velocity part's real part is largest,
+    # |Re(e^{-iφ} u)|² = (|u|² + Re(e^{-2iφ} Σ u²)) / 2 at 2φ = arg Σ u²
+    mode = mode * np.exp(-0.5j * np.angle(np.sum(mode[2 * n:] ** 2)))
     position, velocity = np.real(mode[:2 * n]).reshape(n, 2), np.real(mode[2 * n:]).reshape(n, 2)
     moving = np.linalg.norm(velocity) * dt > 1e-3 * np.linalg.norm(position)  # it moves the blob within a step
     which, part = ("v", velocity) if moving else ("x", position)
