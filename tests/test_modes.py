@@ -59,7 +59,7 @@ def test_blob_shares_read_a_rolling_mode():
     n = state.pos.shape[0]
     r = state.pos - state.pos.mean(axis=0)
     velocity = np.array([-0.45, 0.0]) + np.stack([-r[:, 1], r[:, 0]], axis=1)
-    which, [(ux, uy, spin, deformed)] = blob_shares(model, state, np.concatenate([np.zeros(2 * n), velocity.ravel()]),
+    which, [(ux, uy, spin, deformed, _)] = blob_shares(model, state, np.concatenate([np.zeros(2 * n), velocity.ravel()]),
                                                     params.dt)
     assert which == "v" and (ux, uy, spin) == pytest.approx((-0.45, 0.0, 1.0)) and deformed < 1e-12
 

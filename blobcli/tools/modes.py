@@ -8,19 +8,19 @@ ball), a complex pair an oscillation, λ = 1 a motion that costs nothing (a free
 at any place on a floor).
 
 J is found column by column with central differences: (F(z₀ + ε e_k) - F(z₀ - ε e_k)) / 2ε, two steps of the real
-compiled step for each of the 4N coordinates (x, y, v_x, v_y of each vertex, in that order), each from its own
-copy of the state. The step is smooth only where no contact changes between stick and slip, or touching and
-not, within ε, and at rest some do within 10⁻⁷ (SMALLEST's wedge): so ε = 10⁻⁸ (m, m/s), and the tool checks
-it: J again at 10ε, and a warning where their leading eigenvalues differ (the figures then hold for
-disturbances below ε only). Round-off splits a drift (x' = x + v dt,
-v' = v: λ = 1 twice) into 1 ± √(round-off / ε) ≈ 1 ± 3·10⁻⁴, so |λ - 1| < NEUTRAL counts as 1.
+compiled step for each of the 4N coordinates (state_vector: every vertex's x, y, then every vertex's v_x, v_y),
+each from its own copy of the state. The step is smooth only where no contact changes between stick and slip, or touching and not,
+within ε, and at rest some do within 10⁻⁷ (SMALLEST's wedge): so ε = 10⁻⁸ (m, m/s), and the tool checks it: J
+again at 10ε, and a warning where their leading eigenvalues differ (the figures then hold for disturbances below ε
+only). Round-off splits a drift (x' = x + v dt, v' = v: λ = 1 twice) into 1 ± √(round-off / ε) ≈ 1 ± 3·10⁻⁴,
+so |λ - 1| < NEUTRAL counts as 1.
 
-Prints, for a scene (a TOML file, or one of tools/piles' SMALLEST), after it settles: how far it is from rest
-(the largest change of z in one step: the analysis is of a state that stays where it is), the leading
-eigenvalues as factors per second, and for each leading mode what it does to every blob: its centre's velocity
-and its spin ω (v), or for a mode with no velocity its centre's shift and its turn (x), and the share of that
-which deforms the blob rather than moving it rigidly (the vector's scale is arbitrary: compare blobs, and
-spin with velocity).
+Prints, for a scene (a TOML file, or one of tools/piles' SMALLEST), after it settles: how far it is from rest (the
+largest change of z in one step: the analysis is of a state that stays where it is), the leading eigenvalues as
+factors per second, and for each leading mode what it does to each blob (the BLOBS_SHOWN it moves most): its
+centre's velocity and its spin ω (v), or for a mode with no velocity its centre's shift and its turn (x), and the
+share of that which deforms the blob rather than moving it rigidly (the vector's scale is arbitrary: compare
+blobs, and spin with velocity).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from dataclasses import replace
 import numpy as np
 
 EPS = 1e-8  # m and m/s: the central differences' step
+BLOBS_SHOWN = 8  # a mode's blobs printed: those it moves most
 AT_REST = 1e-4  # m, m/s: a state that a step changes by more is not at rest
 
 
@@ -101,12 +102,12 @@ def leading_modes(J: np.ndarray, count: int) -> tuple[int, np.ndarray, np.ndarra
     return int(neutral.sum()), values[order], vectors[:, order]
 
 
-def blob_shares(model, state, mode: np.ndarray, dt: float) -> tuple[str, list[tuple[float, float, float, float]]]:
+def blob_shares(model, state, mode: np.ndarray, dt: float) -> tuple[str, list[tuple[float, ...]]]:
     """What a mode does to each blob: ("v", rows) from its velocity part, or ("x", rows) from its
     position part where the velocity part moves the blob by less than 0.1% of that in a step of dt (a state one can
-    move to and stay in: λ = 1). A row per blob, (along x, along y, turn, deformed): the best-fit rigid motion
-    u_c + ω ẑ × r of the part u (u_c the mean, ω = Σ r × (u - u_c) / Σ |r|²) and the share |u - u_rigid| / |u|
-    that is not rigid."""
+    move to and stay in: λ = 1). A row per blob, (along x, along y, turn, deformed, size): the best-fit rigid
+    motion u_c + ω ẑ × r of the part u on its vertices (u_c the mean, ω = Σ r × (u - u_c) / Σ |r|²), the share
+    |u - u_rigid| / |u| that is not rigid, and |u|."""
     n = state.pos.shape[0]
     # a complex mode's phase is arbitrary: turned so that its velocity part's real part is largest,
     # |Re(e^{-iφ} u)|² = (|u|² + Re(e^{-2iφ} Σ u²)) / 2 at 2φ = arg Σ u²
@@ -123,7 +124,7 @@ def blob_shares(model, state, mode: np.ndarray, dt: float) -> tuple[str, list[tu
         rigid = centre + spin * np.stack([-r[:, 1], r[:, 0]], axis=1)
         size = float(np.linalg.norm(u))
         shares.append((float(centre[0]), float(centre[1]), spin,
-                       float(np.linalg.norm(u - rigid)) / size if size > 0.0 else 0.0))
+                       float(np.linalg.norm(u - rigid)) / size if size > 0.0 else 0.0, size))
     return which, shares
 
 
@@ -173,8 +174,13 @@ def main(argv=None) -> int:
         kind = "real" if abs(value.imag) < 1e-12 else f"period {2 * np.pi / abs(np.angle(value)) / per_second:.3g} s"
         print(f"  |λ| {abs(value):.7f}: ×{abs(value) ** per_second:.4g} per second ({kind})")
         which, shares = blob_shares(model, state, vector, params.dt)
-        for b, (ux, uy, spin, deformed) in enumerate(shares):
-            print(f"    blob {b}: {which} ({ux:+.3f}, {uy:+.3f}), turn {spin:+.3f}, deformed {100 * deformed:.0f}%")
+        shown = sorted(np.argsort([-row[4] for row in shares], kind="stable")[:BLOBS_SHOWN])
+        for b in shown:
+            ux, uy, spin, deformed, _ = shares[b]
+            print(f"    {model.names[b]}: {which} ({ux:+.3f}, {uy:+.3f}), turn {spin:+.3f}, "
+                  f"deformed {100 * deformed:.0f}%")
+        if len(shares) > len(shown):
+            print(f"    (the {len(shown)} of {len(shares)} blobs it moves most)")
     return 0
 
 

@@ -198,10 +198,11 @@ def impact(blobs: int = 60, at: float = 12.0, drop: float = 3.0, settings: str =
 
 # The two smallest scenes that do not come to rest, at a fixed substep count. "resting": one blob on a plane, nudged
 # at 0.1 mm/s: it settles on a vertex, at the defaults a saddle of its rolling (a polygon's weight rises and falls as
-# it rolls through a vertex spacing), and rocks about the next edge, barely damped (tools/modes). "wedge": two blobs on a plane 0.3 m apart and a third dropped into the gap 5 cm off its middle;
-# rigid discs so placed rest for any friction above tan(θ/2) = 0.38, θ = 41.8° the contact normals' angle from the
-# vertical, and the blobs' is 0.6 (though three discs that roll without slipping, the lower two on the floor and
-# the top one the other way round, are a gear train that moves at no cost in energy).
+# it rolls through a vertex spacing), and rocks about the next edge, barely damped (tools/modes). "wedge": two blobs
+# on a plane 0.3 m apart and a third dropped into the gap 5 cm off its middle; rigid discs so placed rest for any
+# friction above tan(θ/2) = 0.38, θ = 41.8° the contact normals' angle from the vertical, and the blobs' is 0.6
+# (though three discs that roll without slipping, the lower two on the floor and the top one the other way round, are
+# a gear train that moves at no cost in energy).
 SMALLEST = {
     "resting": """
 [[blob]]
