@@ -9,11 +9,11 @@ at any place on a floor).
 
 J is found column by column with central differences: (F(z₀ + ε e_k) - F(z₀ - ε e_k)) / 2ε, two steps of the real
 compiled step for each of the 4N coordinates (state_vector: every vertex's x, y, then every vertex's v_x, v_y),
-each from its own copy of the state. The step is smooth only where no contact changes between stick and slip, or touching and not,
-within ε, and at rest some do within 10⁻⁷ (SMALLEST's wedge): so ε = 10⁻⁸ (m, m/s), and the tool checks it: J
-again at 10ε, and a warning where their leading eigenvalues differ (the figures then hold for disturbances below ε
-only). Round-off splits a drift (x' = x + v dt, v' = v: λ = 1 twice) into 1 ± √(round-off / ε) ≈ 1 ± 3·10⁻⁴,
-so |λ - 1| < NEUTRAL counts as 1.
+each from its own copy of the state. The step is smooth only where no contact changes between stick and slip, or
+touching and not, within ε, and at rest some do within 10⁻⁷ (SMALLEST's wedge): so ε = 10⁻⁸ (m, m/s), and the tool
+checks it: J again at 10ε, and a warning where their leading eigenvalues differ (the figures then hold for
+disturbances below ε only). Round-off splits a drift (x' = x + v dt, v' = v: λ = 1 twice) into 1 ± √(round-off /
+ε) ≈ 1 ± 3·10⁻⁴, so |λ - 1| < NEUTRAL counts as 1.
 
 Prints, for a scene (a TOML file, or one of tools/piles' SMALLEST), after it settles: how far it is from rest (the
 largest change of z in one step: the analysis is of a state that stays where it is), the leading eigenvalues as
