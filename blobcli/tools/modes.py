@@ -34,6 +34,7 @@ import numpy as np
 EPS = 1e-8  # m and m/s: the central differences' step
 BLOBS_SHOWN = 8  # a mode's blobs printed: those it moves most
 AT_REST = 1e-4  # m, m/s: a state that a step changes by more is not at rest
+NEUTRAL = 1e-3  # |λ - 1| below this: neutral (central differences split a drift into 1 ± ~3·10⁻⁴)
 
 
 def settle(scene, seconds: float, drag: float = 0.0, turn_deg: float = 0.0):
@@ -86,9 +87,6 @@ def jacobian(model, state, params, eps: float = EPS) -> np.ndarray:
         dz[k] = eps
         J[:, k] = (F(z0 + dz) - F(z0 - dz)) / (2.0 * eps)
     return J
-
-
-NEUTRAL = 1e-3  # |λ - 1| below this: neutral (central differences split a drift into 1 ± ~3·10⁻⁴)
 
 
 def leading_modes(J: np.ndarray, count: int) -> tuple[int, np.ndarray, np.ndarray]:
